@@ -1,0 +1,1 @@
+"""Command-line subcommands of the core (dataset generation and rendering)."""

@@ -1,0 +1,198 @@
+"""The coordinate conventions of relight: the one module that owns them.
+
+Everything here follows ``shared/conventions.md``:
+
+Convention:
+    * World frame: right-handed, +Z up, floor is z = 0, scene centre at the origin.
+    * Spherical position (r, pan, tilt):
+      ``p = r (cos tilt cos pan, cos tilt sin pan, sin tilt)``.
+      pan is the azimuth, counter-clockwise seen from above, from +X toward +Y;
+      tilt is the elevation above the floor (0 = horizon, 90 = zenith).
+    * The camera sits at pan_c (0 in our datasets), looks at the origin with up +Z,
+      so with pan_c = 0 its right-hand side is +Y.
+    * ``pan_rel = wrap360(pan_l - pan_c)``: 0 front (camera side), 90 camera's right,
+      180 back light, 270 left.
+    * Camera frame (used for photographs, e.g. sphere data): x to the image right,
+      y to the image top, z toward the camera (from the scene).
+    * Mitsuba sensor frame: +X left, +Y up, +Z forward (the viewing direction).
+    * ``to_light`` vectors point from the scene toward the light; Mitsuba's
+      ``directional`` emitter ``direction`` is the way light travels. Only
+      :func:`travel_direction` flips between the two.
+
+Angles are degrees at every public edge; radians stay inside the maths.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "wrap360", "wrap180", "spherical_to_cartesian", "cartesian_to_spherical",
+    "direction", "pan_rel_deg", "encode_y", "decode_y", "camera_basis",
+    "camera_position", "camera_to_world", "world_to_camera", "camera_to_world_vector",
+    "mitsuba_sensor_to_world", "travel_direction", "Y_SIZE",
+]
+
+Y_SIZE = 7  # the paper's target vector: pan sin/cos, tilt sin/cos, r, g, b
+
+
+def wrap360(angle_deg):
+    """Wrap degrees into [0, 360)."""
+    a = np.mod(np.asarray(angle_deg, dtype=np.float64), 360.0)
+    # np.mod(-1e-20, 360) returns 360.0 in floating point: fold it back to 0.
+    return np.where(a >= 360.0, 0.0, a)
+
+
+def wrap180(angle_deg):
+    """Wrap degrees into [-180, 180)."""
+    return wrap360(np.asarray(angle_deg, dtype=np.float64) + 180.0) - 180.0
+
+
+def spherical_to_cartesian(r_m, pan_deg, tilt_deg) -> np.ndarray:
+    """Position of spherical coordinates in the world frame.
+
+    Args:
+        r_m: radius in metres, any broadcastable shape.
+        pan_deg: azimuth in degrees, counter-clockwise from +X toward +Y.
+        tilt_deg: elevation in degrees above the floor plane (90 = zenith).
+
+    Returns:
+        Array of shape ``broadcast(...) + (3,)`` in metres.
+    """
+    pan_rad = np.radians(np.asarray(pan_deg, dtype=np.float64))
+    tilt_rad = np.radians(np.asarray(tilt_deg, dtype=np.float64))
+    r = np.asarray(r_m, dtype=np.float64)
+    return np.stack(np.broadcast_arrays(
+        r * np.cos(tilt_rad) * np.cos(pan_rad),
+        r * np.cos(tilt_rad) * np.sin(pan_rad),
+        r * np.sin(tilt_rad)), axis=-1)
+
+
+def direction(pan_deg, tilt_deg) -> np.ndarray:
+    """Unit vector toward (pan, tilt), world frame; shape ``(..., 3)``."""
+    return spherical_to_cartesian(1.0, pan_deg, tilt_deg)
+
+
+def cartesian_to_spherical(p) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Inverse of :func:`spherical_to_cartesian`.
+
+    Args:
+        p: ``(..., 3)`` positions in metres (world frame).
+
+    Returns:
+        ``(r_m, pan_deg in [0, 360), tilt_deg in [-90, 90])``. At the poles pan is 0.
+    """
+    p = np.asarray(p, dtype=np.float64)
+    x, y, z = p[..., 0], p[..., 1], p[..., 2]
+    r = np.sqrt(x * x + y * y + z * z)
+    pan_deg = wrap360(np.degrees(np.arctan2(y, x)))
+    tilt_deg = np.degrees(np.arctan2(z, np.hypot(x, y)))
+    return r, pan_deg, tilt_deg
+
+
+def pan_rel_deg(pan_l_deg, pan_c_deg=0.0):
+    """Light pan relative to the camera, ``wrap360(pan_l - pan_c)`` in [0, 360)."""
+    return wrap360(np.asarray(pan_l_deg, dtype=np.float64) - pan_c_deg)
+
+
+def encode_y(pan_l_deg, tilt_l_deg, rgb, tilt_c_deg, pan_c_deg=0.0) -> np.ndarray:
+    """The paper's 7-vector ``[sin(pan_c-pan_l), cos(pan_c-pan_l), sin(tilt_c-tilt_l),
+    cos(tilt_c-tilt_l), r, g, b]``.
+
+    Args:
+        pan_l_deg, tilt_l_deg: light pan and tilt in degrees (world frame), shape (...).
+        rgb: ``(..., 3)`` linear RGB, stored as given (datasets store unit norm).
+        tilt_c_deg, pan_c_deg: camera tilt and pan in degrees.
+
+    Returns:
+        ``(..., 7)`` float64.
+    """
+    dpan_rad = np.radians(np.asarray(pan_c_deg, dtype=np.float64) - pan_l_deg)
+    dtilt_rad = np.radians(np.asarray(tilt_c_deg, dtype=np.float64) - tilt_l_deg)
+    rgb = np.asarray(rgb, dtype=np.float64)
+    angles = np.stack(np.broadcast_arrays(np.sin(dpan_rad), np.cos(dpan_rad),
+                                          np.sin(dtilt_rad), np.cos(dtilt_rad)), axis=-1)
+    if rgb.shape[-1:] != (3,):
+        raise ValueError(f"expected rgb with last axis 3, got shape {rgb.shape}")
+    lead = np.broadcast_shapes(angles.shape[:-1], rgb.shape[:-1])
+    return np.concatenate([np.broadcast_to(angles, lead + (4,)),
+                           np.broadcast_to(rgb, lead + (3,))], axis=-1)
+
+
+def decode_y(y, tilt_c_deg, pan_c_deg=0.0):
+    """Decode a 7-vector (``(..., 7)``) into light angles and colour.
+
+    The sin/cos pairs need not be normalised (a network's raw output is fine).
+
+    Returns:
+        ``(pan_l_deg in [0, 360), tilt_l_deg, rgb (..., 3))``. With ``pan_c = 0``
+        the returned pan equals ``pan_rel``. ``tilt_l_deg`` is not clamped.
+    """
+    y = np.asarray(y, dtype=np.float64)
+    if y.shape[-1] != Y_SIZE:
+        raise ValueError(f"expected a 7-vector (last axis 7), got shape {y.shape}")
+    pan_l = wrap360(pan_c_deg - np.degrees(np.arctan2(y[..., 0], y[..., 1])))
+    tilt_l = np.asarray(tilt_c_deg, dtype=np.float64) - np.degrees(np.arctan2(y[..., 2], y[..., 3]))
+    return pan_l, tilt_l, y[..., 4:7]
+
+
+def camera_position(tilt_c_deg, r_c_m=20.0, pan_c_deg=0.0) -> np.ndarray:
+    """Camera centre in metres (world frame): spherical (r_c, pan_c, tilt_c)."""
+    return spherical_to_cartesian(r_c_m, pan_c_deg, tilt_c_deg)
+
+
+def camera_basis(tilt_c_deg, pan_c_deg=0.0):
+    """World-frame unit vectors ``(right, up, forward)`` of a camera looking at the origin.
+
+    ``forward`` points from the camera to the origin, ``up`` is +Z made orthogonal to
+    it, ``right = forward x up``. Tilts of exactly +-90 (looking straight down) are
+    degenerate and rejected.
+    """
+    if abs(float(tilt_c_deg)) >= 90.0:
+        raise ValueError(f"camera tilt must be in (-90, 90) degrees, got {tilt_c_deg}")
+    forward = -direction(pan_c_deg, tilt_c_deg)
+    world_up = np.array([0.0, 0.0, 1.0])
+    right = np.cross(forward, world_up)
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    return right, up, forward
+
+
+def world_to_camera(v_world, tilt_c_deg, pan_c_deg=0.0) -> np.ndarray:
+    """Rotate world vectors ``(..., 3)`` into the camera frame (x right, y up, z toward camera)."""
+    right, up, forward = camera_basis(tilt_c_deg, pan_c_deg)
+    rot = np.stack([right, up, -forward])  # rows: camera axes in world coordinates
+    return np.asarray(v_world, dtype=np.float64) @ rot.T
+
+
+def camera_to_world_vector(v_cam, tilt_c_deg, pan_c_deg=0.0) -> np.ndarray:
+    """Inverse of :func:`world_to_camera` (a rotation: its transpose)."""
+    right, up, forward = camera_basis(tilt_c_deg, pan_c_deg)
+    rot = np.stack([right, up, -forward])
+    return np.asarray(v_cam, dtype=np.float64) @ rot
+
+
+def camera_to_world(tilt_c_deg, r_c_m=20.0, pan_c_deg=0.0) -> np.ndarray:
+    """4x4 camera-frame (x right, y up, z toward camera) to world matrix."""
+    right, up, forward = camera_basis(tilt_c_deg, pan_c_deg)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2] = right, up, -forward
+    m[:3, 3] = camera_position(tilt_c_deg, r_c_m, pan_c_deg)
+    return m
+
+
+def mitsuba_sensor_to_world(tilt_c_deg, r_c_m=20.0, pan_c_deg=0.0) -> np.ndarray:
+    """4x4 ``to_world`` of a Mitsuba sensor (local +X left, +Y up, +Z forward).
+
+    Equal to Mitsuba's ``look_at(origin=camera, target=0, up=+Z)``.
+    """
+    right, up, forward = camera_basis(tilt_c_deg, pan_c_deg)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2] = -right, up, forward
+    m[:3, 3] = camera_position(tilt_c_deg, r_c_m, pan_c_deg)
+    return m
+
+
+def travel_direction(to_light) -> np.ndarray:
+    """The way light travels (Mitsuba ``directional`` emitter ``direction``) from a
+    ``to_light`` vector (scene toward light). The single place the sign flips."""
+    return -np.asarray(to_light, dtype=np.float64)

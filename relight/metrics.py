@@ -1,0 +1,239 @@
+"""Error metrics (all in degrees) and the paper's result tables.
+
+Convention (``shared/conventions.md``):
+    * pan error: ``|wrap180(pan_pred - pan_gt)|`` in [0, 180].
+    * tilt error: ``|tilt_pred - tilt_gt|`` (light elevation).
+    * direction error: angle between the world-frame unit vectors
+      ``frames.direction(pan, tilt) = (cos t cos p, cos t sin p, sin t)``.
+    * colour error: angle between predicted and true RGB (the recovery angular error
+      of colour constancy), scale invariant.
+    * Breakdowns: tilt levels L1 [30, 50), L2 [50, 70), L3 [70, 90] on the true tilt;
+      pan levels on the true ``pan_rel`` (wrapped to [0, 360)), counted only for true
+      tilt in [30, 70] (inclusive): front [315, 45), right [45, 135),
+      back [135, 225), left [225, 315).
+
+Angles use ``atan2(|a x b|, a . b)``, accurate for tiny and near-180 angles alike.
+Everything is vectorised (numpy broadcasting); angles are degrees at every edge.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from relight.frames import direction, wrap180, wrap360
+
+__all__ = [
+    "pan_error_deg", "tilt_error_deg", "direction_error_deg", "colour_error_deg",
+    "light_errors", "summary_stats", "TILT_LEVELS", "PAN_LEVELS", "PAN_TABLE_TILT_DEG",
+    "METRICS", "tilt_level", "pan_level", "error_tables", "format_tables",
+]
+
+METRICS = ("pan", "tilt", "direction", "colour")  # keys of light_errors, table order
+TILT_LEVELS = {"L1": (30.0, 50.0), "L2": (50.0, 70.0), "L3": (70.0, 90.0)}
+PAN_LEVELS = {"front": (315.0, 45.0), "right": (45.0, 135.0),
+              "back": (135.0, 225.0), "left": (225.0, 315.0)}
+PAN_TABLE_TILT_DEG = (30.0, 70.0)  # true tilt range (inclusive) kept for the pan table
+STATS = ("n", "mean", "median", "trimean", "best25", "worst25", "max")
+STAT_LABELS = {"mean": "Mean", "median": "Median", "trimean": "Trimean",
+               "best25": "Best 25%", "worst25": "Worst 25%", "max": "Max"}
+
+
+def _angle_deg(a, b) -> np.ndarray:
+    """Angle in degrees, [0, 180], between vectors ``(..., 3)`` (broadcast)."""
+    cross = np.linalg.norm(np.cross(a, b), axis=-1)
+    dot = np.sum(a * b, axis=-1)
+    return np.degrees(np.arctan2(cross, dot))
+
+
+def pan_error_deg(pan_pred_deg, pan_gt_deg) -> np.ndarray:
+    """``|wrap180(pred - gt)|`` in [0, 180] degrees; e.g. 359 vs 1 gives 2."""
+    diff = np.asarray(pan_pred_deg, dtype=np.float64) - np.asarray(pan_gt_deg, dtype=np.float64)
+    return np.abs(wrap180(diff))
+
+
+def tilt_error_deg(tilt_pred_deg, tilt_gt_deg) -> np.ndarray:
+    """``|pred - gt|`` in degrees (light elevation; no wrapping)."""
+    return np.abs(np.asarray(tilt_pred_deg, dtype=np.float64)
+                  - np.asarray(tilt_gt_deg, dtype=np.float64))
+
+
+def direction_error_deg(pan_pred_deg, tilt_pred_deg, pan_gt_deg, tilt_gt_deg) -> np.ndarray:
+    """Angle in degrees, [0, 180], between the two world-frame light directions.
+
+    Inputs are pan/tilt in degrees (any real values, broadcast). At the zenith
+    (tilt 90) the pan does not matter.
+    """
+    return _angle_deg(direction(pan_pred_deg, tilt_pred_deg), direction(pan_gt_deg, tilt_gt_deg))
+
+
+def colour_error_deg(rgb_pred, rgb_gt) -> np.ndarray:
+    """Recovery angular error in degrees, [0, 180], between RGB vectors ``(..., 3)``.
+
+    Scale invariant. Zero-length or non-finite vectors raise ValueError.
+    """
+    return _angle_deg(_unit(rgb_pred, "rgb_pred"), _unit(rgb_gt, "rgb_gt"))
+
+
+def _unit(v, name: str) -> np.ndarray:
+    """``(..., 3)`` vectors scaled to unit length without overflow or underflow."""
+    v = np.asarray(v, dtype=np.float64)
+    if v.shape[-1:] != (3,):
+        raise ValueError(f"expected {name} with last axis 3, got shape {v.shape}")
+    scale = np.max(np.abs(v), axis=-1, keepdims=True)
+    if not np.all(np.isfinite(v)) or np.any(scale == 0.0):
+        raise ValueError(f"expected finite, non-zero {name} vectors")
+    v = v / scale  # largest component is +-1: squaring can neither overflow nor underflow
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def light_errors(pan_pred_deg, tilt_pred_deg, rgb_pred,
+                 pan_gt_deg, tilt_gt_deg, rgb_gt) -> dict[str, np.ndarray]:
+    """All four errors in degrees: ``{"pan", "tilt", "direction", "colour"}``.
+
+    Angles have shape ``(...)``; RGB ``(..., 3)``. Pan may be ``pan_rel`` or world pan,
+    as long as prediction and truth use the same one (the direction error is then
+    the same too, since a common pan offset is a rotation about +Z).
+    """
+    return {
+        "pan": pan_error_deg(pan_pred_deg, pan_gt_deg),
+        "tilt": tilt_error_deg(tilt_pred_deg, tilt_gt_deg),
+        "direction": direction_error_deg(pan_pred_deg, tilt_pred_deg, pan_gt_deg, tilt_gt_deg),
+        "colour": colour_error_deg(rgb_pred, rgb_gt),
+    }
+
+
+def summary_stats(values) -> dict:
+    """Summary of errors (degrees), flattened.
+
+    Returns ``{"n", "mean", "median", "trimean", "best25", "worst25", "max"}``:
+    trimean = (Q1 + 2 median + Q3) / 4 with numpy's default (linear) quantiles;
+    best25 / worst25 = mean of the ``k = max(1, n // 4)`` smallest / largest values.
+    Empty input gives ``n = 0`` and NaN for the rest; NaN or inf raises ValueError.
+    """
+    v = np.asarray(values, dtype=np.float64).ravel()
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"summary_stats needs finite values; got {np.sum(~np.isfinite(v))} "
+                         "NaN/inf of " f"{v.size}")
+    n = int(v.size)
+    if n == 0:
+        return {"n": 0, **{k: float("nan") for k in STATS[1:]}}
+    s = np.sort(v)
+    q1, med, q3 = np.quantile(s, [0.25, 0.5, 0.75])
+    k = max(1, n // 4)
+    return {"n": n, "mean": float(s.mean()), "median": float(med),
+            "trimean": float((q1 + 2.0 * med + q3) / 4.0),
+            "best25": float(s[:k].mean()), "worst25": float(s[-k:].mean()),
+            "max": float(s[-1])}
+
+
+def tilt_level(tilt_gt_deg) -> np.ndarray:
+    """Tilt level labels ("L1", "L2", "L3"; "" outside) of true tilts in degrees.
+
+    L1 [30, 50), L2 [50, 70), L3 [70, 90] (90 included). Shape follows the input.
+    """
+    t = np.asarray(tilt_gt_deg, dtype=np.float64)
+    conds, labels = [], []
+    for name, (lo, hi) in TILT_LEVELS.items():
+        upper = t <= hi if name == "L3" else t < hi
+        conds.append((t >= lo) & upper)
+        labels.append(name)
+    return np.select(conds, labels, default="").astype("<U2")
+
+
+def pan_level(pan_rel_gt_deg, tilt_gt_deg) -> np.ndarray:
+    """Pan level labels ("front", "right", "back", "left"; "" excluded) in degrees.
+
+    ``pan_rel`` is wrapped to [0, 360) first; each level is [lo, hi) and front wraps
+    around 0 ([315, 360) or [0, 45)). Only true tilts in [30, 70] (inclusive) get a
+    label, as in the paper's pan table. Shape: the broadcast of both inputs.
+    """
+    p = wrap360(pan_rel_gt_deg)
+    t = np.asarray(tilt_gt_deg, dtype=np.float64)
+    p, t = np.broadcast_arrays(p, t)
+    kept = (t >= PAN_TABLE_TILT_DEG[0]) & (t <= PAN_TABLE_TILT_DEG[1])
+    conds, labels = [], []
+    for name, (lo, hi) in PAN_LEVELS.items():
+        inside = ((p >= lo) | (p < hi)) if lo > hi else ((p >= lo) & (p < hi))
+        conds.append(kept & inside)
+        labels.append(name)
+    return np.select(conds, labels, default="").astype("<U5")
+
+
+def _stats_by_metric(errors: dict[str, np.ndarray], mask) -> dict:
+    return {m: summary_stats(e[mask]) for m, e in errors.items()}
+
+
+def error_tables(errors: dict[str, np.ndarray], tilt_gt_deg, pan_rel_gt_deg) -> dict:
+    """The paper's three tables as nested dicts of :func:`summary_stats`.
+
+    Args:
+        errors: metric name -> errors in degrees, all of shape (N,) (e.g. from
+            :func:`light_errors`).
+        tilt_gt_deg, pan_rel_gt_deg: true light tilt and pan_rel in degrees, shape (N,).
+
+    Returns:
+        ``{"overall": {metric: stats}, "tilt_levels": {"L1": {metric: stats}, ...},
+        "pan_levels": {"front": {metric: stats}, ...}}``; empty levels have n = 0.
+    """
+    errs = {m: np.asarray(e, dtype=np.float64).ravel() for m, e in errors.items()}
+    tilt = np.asarray(tilt_gt_deg, dtype=np.float64).ravel()
+    pan = np.asarray(pan_rel_gt_deg, dtype=np.float64).ravel()
+    sizes = {m: e.size for m, e in errs.items()} | {"tilt_gt": tilt.size, "pan_rel_gt": pan.size}
+    if len(set(sizes.values())) > 1:
+        raise ValueError(f"error_tables needs equal lengths, got {sizes}")
+    tl, pl = tilt_level(tilt), pan_level(pan, tilt)
+    return {
+        "overall": _stats_by_metric(errs, np.ones(tilt.size, dtype=bool)),
+        "tilt_levels": {name: _stats_by_metric(errs, tl == name) for name in TILT_LEVELS},
+        "pan_levels": {name: _stats_by_metric(errs, pl == name) for name in PAN_LEVELS},
+    }
+
+
+def _metric_order(group: dict) -> list[str]:
+    """Metric names of one group ({metric: stats}), the paper's order first."""
+    return [m for m in METRICS if m in group] + [m for m in group if m not in METRICS]
+
+
+def _fmt(x) -> str:
+    return "n/a" if not np.isfinite(x) else f"{x:.2f}"
+
+
+def _table(title: str, key_header: str, groups: dict, stats, key_label) -> list[str]:
+    metrics = _metric_order(next(iter(groups.values())))
+    head = ([key_header] if key_header else []) + ["Stat", "n"] + [m.capitalize() for m in metrics]
+    lines = [f"**{title}**", "", "| " + " | ".join(head) + " |",
+             "|" + "|".join(["---"] * (len(head) - len(metrics)) + ["---:"] * len(metrics)) + "|"]
+    for key, group in groups.items():
+        n = group[metrics[0]]["n"] if metrics else 0
+        for stat in stats:
+            cells = ([key_label(key)] if key_header else []) + [STAT_LABELS.get(stat, stat), str(n)]
+            cells += [_fmt(group[m][stat]) for m in metrics]
+            lines.append("| " + " | ".join(cells) + " |")
+    return lines + [""]
+
+
+def format_tables(tables: dict, stats=("mean", "median")) -> str:
+    """Markdown text of the paper's Tables 1-3 from :func:`error_tables` (degrees, 2 decimals).
+
+    Table 1: overall (rows: one per stat). Table 2: tilt levels L1..L3 x stat.
+    Table 3: pan levels front/right/back/left x stat. Every row shows its n;
+    statistics of empty groups print as "n/a".
+    """
+    for stat in stats:
+        if stat not in STAT_LABELS:
+            raise ValueError(f"unknown statistic {stat!r}; expected one of {list(STAT_LABELS)}")
+
+    def tilt_label(name):
+        lo, hi = TILT_LEVELS[name]
+        return f"{name} [{lo:g}, {hi:g}{']' if name == 'L3' else ')'}"
+
+    def pan_label(name):
+        lo, hi = PAN_LEVELS[name]
+        return f"{name} [{lo:g}, {hi:g})"
+
+    lines = _table("Table 1. Overall errors (degrees)", "", {"all": tables["overall"]},
+                   stats, str)
+    lines += _table("Table 2. Errors by light tilt level (degrees)", "Tilt level",
+                    tables["tilt_levels"], stats, tilt_label)
+    lines += _table("Table 3. Errors by light pan relative to the camera, tilt in [30, 70] "
+                    "(degrees)", "Pan level", tables["pan_levels"], stats, pan_label)
+    return "\n".join(lines)

@@ -1,0 +1,152 @@
+"""Predictions files, format ``relight.predictions/v1`` (see shared/conventions.md).
+
+A prediction gives either ``pan_deg`` (= pan_rel, the light pan relative to the camera)
++ ``tilt_deg`` (light elevation) + ``rgb``, or the raw 7-vector ``y`` (decoded with the
+camera tilt of the image it belongs to). :func:`read_predictions` validates the whole
+file and raises :class:`PredictionsError` with one line naming the bad entry; with
+``skip_bad`` it returns the bad entries separately instead.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from relight import frames
+
+PREDICTIONS_FORMAT = "relight.predictions/v1"
+
+
+class PredictionsError(ValueError):
+    """A predictions file or entry is malformed (one-line reason naming the entry)."""
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """One validated entry. Exactly one of (pan_deg, tilt_deg, rgb) or y is set."""
+    id: str
+    pan_deg: float | None = None
+    tilt_deg: float | None = None
+    rgb: tuple[float, float, float] | None = None
+    y: tuple[float, ...] | None = None
+    extra: dict = field(default_factory=dict, compare=False)
+
+    def resolve(self, camera_tilt_deg: float) -> tuple[float, float, np.ndarray]:
+        """``(pan_rel_deg, tilt_deg, rgb unit norm)``; ``y`` needs the camera tilt."""
+        if self.y is not None:
+            pan, tilt, rgb = frames.decode_y(np.asarray(self.y), camera_tilt_deg, 0.0)
+            pan, tilt = float(pan), float(tilt)
+        else:
+            pan, tilt, rgb = float(frames.wrap360(self.pan_deg)), float(self.tilt_deg), np.asarray(self.rgb)
+        rgb = np.asarray(rgb, dtype=np.float64)
+        norm = np.linalg.norm(rgb)
+        if not np.isfinite(norm) or norm <= 0 or (rgb < 0).any():
+            raise PredictionsError(f"entry {self.id!r}: rgb must be non-negative and non-zero, got {rgb.tolist()}")
+        return pan, tilt, rgb / norm
+
+
+def _finite_list(value, n: int, what: str, entry: str) -> tuple[float, ...]:
+    if not isinstance(value, (list, tuple)) or len(value) != n:
+        raise PredictionsError(f"entry {entry}: {what} must be a list of {n} numbers, got {value!r}")
+    out = []
+    for v in value:
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise PredictionsError(f"entry {entry}: {what} must hold finite numbers, got {value!r}")
+        out.append(float(v))
+    return tuple(out)
+
+
+def parse_entry(raw, index: int) -> Prediction:
+    """Validate one raw JSON entry (``index`` is its position, for messages)."""
+    if not isinstance(raw, dict):
+        raise PredictionsError(f"entry #{index}: expected a JSON object, got {type(raw).__name__}")
+    pid = raw.get("id")
+    if not isinstance(pid, str) or not pid:
+        raise PredictionsError(f"entry #{index}: missing or non-string 'id'")
+    name = f"#{index} (id {pid!r})"
+    if "/" in pid or "\\" in pid or pid in (".", "..") or "\0" in pid:
+        raise PredictionsError(f"entry {name}: id must be a plain name, not a path")
+    extra = {k: v for k, v in raw.items() if k not in ("id", "pan_deg", "tilt_deg", "rgb", "y")}
+    if "y" in raw:
+        y = _finite_list(raw["y"], frames.Y_SIZE, "y", name)
+        rgb = y[4:7]
+        if min(rgb) < 0 or max(rgb) <= 0:
+            raise PredictionsError(f"entry {name}: rgb part of y must be non-negative and non-zero")
+        if y[0] == 0 and y[1] == 0 or y[2] == 0 and y[3] == 0:
+            raise PredictionsError(f"entry {name}: a sin/cos pair of y is (0, 0): no angle")
+        return Prediction(id=pid, y=y, extra=extra)
+    missing = [k for k in ("pan_deg", "tilt_deg", "rgb") if k not in raw]
+    if missing:
+        raise PredictionsError(f"entry {name}: missing {', '.join(missing)} (or give 'y')")
+    pan, tilt = _finite_list([raw["pan_deg"], raw["tilt_deg"]], 2, "pan_deg/tilt_deg", name)
+    rgb = _finite_list(raw["rgb"], 3, "rgb", name)
+    if min(rgb) < 0 or max(rgb) <= 0:
+        raise PredictionsError(f"entry {name}: rgb must be non-negative and non-zero, got {list(rgb)}")
+    if not -90.0 <= tilt <= 90.0:
+        raise PredictionsError(f"entry {name}: tilt_deg must be in [-90, 90], got {tilt}")
+    return Prediction(id=pid, pan_deg=pan, tilt_deg=tilt, rgb=rgb, extra=extra)
+
+
+@dataclass
+class PredictionsFile:
+    predictions: list[Prediction]
+    dataset: str | None = None
+    bad: list[tuple[str, str]] = field(default_factory=list)  # (entry, reason) when skip_bad
+    meta: dict = field(default_factory=dict)
+
+
+def read_predictions(path: str | os.PathLike, skip_bad: bool = False) -> PredictionsFile:
+    """Read and validate a predictions file. Duplicated ids are errors."""
+    path = os.fspath(path)
+    try:
+        with open(path) as f:
+            data = json.load(f)
+    except OSError as exc:
+        raise PredictionsError(f"cannot read predictions file {path}: {exc.strerror}") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise PredictionsError(f"{path}: malformed JSON ({exc})") from None
+    if not isinstance(data, dict) or data.get("format") != PREDICTIONS_FORMAT:
+        got = data.get("format") if isinstance(data, dict) else type(data).__name__
+        raise PredictionsError(f"{path}: expected format {PREDICTIONS_FORMAT!r}, got {got!r}")
+    entries = data.get("predictions")
+    if not isinstance(entries, list):
+        raise PredictionsError(f"{path}: 'predictions' must be a list")
+    dataset = data.get("dataset")
+    if dataset is not None and not isinstance(dataset, str):
+        raise PredictionsError(f"{path}: 'dataset' must be a path string")
+    out = PredictionsFile(predictions=[], dataset=dataset,
+                          meta={k: v for k, v in data.items() if k not in ("format", "predictions", "dataset")})
+    seen = set()
+    for i, raw in enumerate(entries):
+        try:
+            p = parse_entry(raw, i)
+            if p.id in seen:
+                raise PredictionsError(f"entry #{i} (id {p.id!r}): duplicate id")
+            seen.add(p.id)
+            out.predictions.append(p)
+        except PredictionsError as exc:
+            if not skip_bad:
+                raise PredictionsError(f"{path}: {exc}") from None
+            out.bad.append((f"#{i}", str(exc)))
+    return out
+
+
+def write_predictions(path: str | os.PathLike, entries: list[dict], dataset: str | None = None,
+                      **meta) -> None:
+    """Write a predictions file atomically. Each entry: ``{"id", "pan_deg", "tilt_deg",
+    "rgb"}`` or ``{"id", "y"}`` (extra keys are kept). Entries are validated first."""
+    for i, e in enumerate(entries):
+        parse_entry(e, i)
+    doc = {"format": PREDICTIONS_FORMAT}
+    if dataset is not None:
+        doc["dataset"] = os.fspath(dataset)
+    doc.update(meta)
+    doc["predictions"] = entries
+    path = os.fspath(path)
+    tmp = f"{path}.tmp{os.getpid()}"
+    with open(tmp, "w") as f:
+        json.dump(doc, f, indent=1)
+    os.replace(tmp, path)

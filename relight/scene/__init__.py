@@ -1,0 +1,1 @@
+"""Procedural scene content: shapes, textures, materials."""

@@ -1,0 +1,276 @@
+"""Turn a :class:`SceneSpec` into a Mitsuba scene, reusing loaded scenes.
+
+Loading a scene (``mi.load_dict``) and compiling its kernels costs more than a render
+at our sizes, so a :class:`SceneTemplate` loads one scene per *structure* (number of
+walls, image size, path depth, mesh topologies) and every spec of that structure is
+written into it through ``mi.traverse``: wall/floor texture pixels, object vertex
+buffers and materials, camera pose and field of view, light position and intensity.
+None of these is a kernel literal, so nothing recompiles. Procedural shapes all share
+one mesh topology (:mod:`relight.scene.shapes`), so they share templates.
+
+Unused object slots (a scene with fewer objects than the template has slots) are
+shrunk to a point 1 km below the floor, where no camera or light ray reaches them.
+
+:func:`build_naive` builds a fresh template for one spec: the straightforward way,
+kept for the benchmark and as the readable reference of what a template holds.
+"""
+from __future__ import annotations
+
+import functools
+import math
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from relight import backend, frames
+from relight.scene import bsdf as rough_bsdf
+from relight.scene import shapes, textures
+from relight.scene.spec import ObjectSpec, SceneFileError, SceneSpec
+
+N_OBJECT_SLOTS = 3          # the generator places 1-3 objects
+FLOOR_HALF_SIZE_M = 400.0   # floor square reaches past every wall corner
+FLOOR_TILE_M = 10.0         # the floor texture repeats every 10 m
+HIDDEN_DEPTH_M = -1000.0    # where unused object slots are parked
+
+
+@dataclass(frozen=True)
+class TemplateKey:
+    """What forces a new Mitsuba scene: anything that changes kernel or buffer shapes."""
+    n_walls: int
+    res: int
+    max_depth: int
+    texture_res: int
+    slots: tuple[tuple[int, int], ...]  # (vertex count, face count) per object slot
+
+
+def object_mesh(obj: ObjectSpec) -> shapes.Mesh:
+    """Object-space mesh of an object (normalised: centred, min z 0, max radius 1)."""
+    if obj.mesh_path is not None:
+        return _user_mesh(obj.mesh_path)
+    try:
+        return _procedural_mesh(obj.family, _freeze(obj.params))
+    except (ValueError, KeyError, TypeError) as exc:
+        raise SceneFileError(f"object {obj.family!r}: {exc}") from None
+
+
+def _freeze(d):
+    if isinstance(d, dict):
+        return tuple(sorted((k, _freeze(v)) for k, v in d.items()))
+    if isinstance(d, list):
+        return tuple(_freeze(v) for v in d)
+    return d
+
+
+def _thaw(t):
+    if isinstance(t, tuple) and all(isinstance(i, tuple) and len(i) == 2 and isinstance(i[0], str) for i in t) and t:
+        return {k: _thaw(v) for k, v in t}
+    if isinstance(t, tuple):
+        return [_thaw(v) for v in t]
+    return t
+
+
+@functools.lru_cache(maxsize=64)
+def _procedural_mesh(family: str, frozen_params) -> shapes.Mesh:
+    return shapes.make_mesh(family, _thaw(frozen_params))
+
+
+@functools.lru_cache(maxsize=32)
+def _user_mesh(path: str) -> shapes.Mesh:
+    """Load an OBJ or PLY file (taken as z-up) and normalise it like procedural shapes."""
+    ext = os.path.splitext(path)[1].lower()
+    if ext not in (".obj", ".ply"):
+        raise SceneFileError(f"mesh {path}: expected a .obj or .ply file")
+    if not os.path.isfile(path):
+        raise SceneFileError(f"mesh {path}: file not found")
+    mi = backend.mitsuba()
+    try:
+        mesh = mi.load_dict({"type": ext[1:], "filename": path, "face_normals": True})
+    except Exception as exc:  # noqa: BLE001 - Mitsuba raises RuntimeError with its own text
+        raise SceneFileError(f"mesh {path}: cannot be loaded ({str(exc).splitlines()[0][:120]})") from None
+    p = mi.traverse(mesh)
+    v = np.array(p["vertex_positions"], dtype=np.float64).reshape(-1, 3)
+    f = np.array(p["faces"], dtype=np.uint32).reshape(-1, 3)
+    if len(v) < 3 or len(f) < 1 or not np.isfinite(v).all():
+        raise SceneFileError(f"mesh {path}: empty or non-finite geometry")
+    lo, hi = v.min(0), v.max(0)
+    v = v - np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
+    radius = np.hypot(v[:, 0], v[:, 1]).max()
+    if radius <= 0:
+        raise SceneFileError(f"mesh {path}: degenerate (no horizontal extent)")
+    v = (v / radius).astype(np.float32)
+    uv = np.zeros((len(v), 2), np.float32)
+    return shapes.Mesh(vertices=v, faces=f, normals=shapes.vertex_normals(v, f), uv=uv)
+
+
+def template_key(spec: SceneSpec, meshes: list[shapes.Mesh]) -> TemplateKey:
+    slots = [(len(m.vertices), len(m.faces)) for m in meshes]
+    while len(slots) < N_OBJECT_SLOTS:
+        slots.append(slots[0] if slots else (shapes.DEFAULT_NU * shapes.DEFAULT_NV, 0))
+    return TemplateKey(spec.room.n_walls, spec.render.res, spec.render.max_depth,
+                       spec.room.texture_res, tuple(slots))
+
+
+def wall_to_world(k: int, n_walls: int, inradius_m: float, height_m: float,
+                  rotation_deg: float) -> np.ndarray:
+    """4x4 matrix placing Mitsuba's ``rectangle`` ([-1,1]^2, normal +z) as wall ``k``,
+    its normal facing the room centre."""
+    theta_rad = math.radians(rotation_deg + k * 360.0 / n_walls)
+    outward = np.array([math.cos(theta_rad), math.sin(theta_rad), 0.0])
+    inward, up = -outward, np.array([0.0, 0.0, 1.0])
+    tangent = np.cross(up, inward)  # local x; x * y = z holds: tangent x up = inward
+    half_width = inradius_m * math.tan(math.pi / n_walls)
+    m = np.eye(4)
+    m[:3, 0] = tangent * half_width
+    m[:3, 1] = up * height_m / 2.0
+    m[:3, 2] = inward
+    m[:3, 3] = outward * inradius_m + up * height_m / 2.0
+    return m
+
+
+def _object_vertices(obj: ObjectSpec, mesh: shapes.Mesh) -> tuple[np.ndarray, np.ndarray]:
+    """World-space vertices and normals of an object: scale, yaw about +Z, translate."""
+    yaw_rad = math.radians(obj.yaw_deg)
+    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
+    rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    v = (mesh.vertices.astype(np.float64) * obj.size_m) @ rot.T
+    v[:, 0] += obj.position_m[0]
+    v[:, 1] += obj.position_m[1]
+    n = mesh.normals.astype(np.float64) @ rot.T
+    return v.astype(np.float32), n.astype(np.float32)
+
+
+class SceneTemplate:
+    """One loaded Mitsuba scene of a fixed structure, updated in place per spec."""
+
+    def __init__(self, key: TemplateKey):
+        mi = backend.mitsuba()
+        rough_bsdf.register()
+        self.key = key
+        tex = np.full((key.texture_res, key.texture_res, 3), 0.5, np.float32)
+
+        def bitmap(to_uv=None):
+            d = {"type": "bitmap", "data": mi.TensorXf(tex), "raw": True,
+                 "filter_type": "bilinear", "wrap_mode": "repeat"}
+            if to_uv is not None:
+                d["to_uv"] = to_uv
+            return d
+
+        scene = {
+            "type": "scene",
+            "integrator": {"type": "path", "max_depth": key.max_depth},
+            "sensor": {
+                "type": "perspective", "fov": 40.0, "fov_axis": "x",
+                "to_world": mi.ScalarTransform4f().look_at(origin=[20, 0, 5], target=[0, 0, 0], up=[0, 0, 1]),
+                "film": {"type": "hdrfilm", "width": key.res, "height": key.res,
+                         "rfilter": {"type": "box"}, "pixel_format": "rgb"},
+                "sampler": {"type": "independent", "sample_count": 1},
+            },
+            "light": {"type": "point", "position": [0.0, 0.0, 30.0],
+                      "intensity": {"type": "rgb", "value": [1.0, 1.0, 1.0]}},
+            "floor": {"type": "rectangle",
+                      "to_world": mi.ScalarTransform4f().scale([FLOOR_HALF_SIZE_M, FLOOR_HALF_SIZE_M, 1.0]),
+                      "bsdf": {"type": "diffuse", "reflectance": bitmap(
+                          mi.ScalarTransform3f().scale(2.0 * FLOOR_HALF_SIZE_M / FLOOR_TILE_M))}},
+        }
+        for k in range(key.n_walls):
+            scene[f"wall{k}"] = {"type": "rectangle", "to_world": mi.ScalarTransform4f(np.eye(4)),
+                                 "bsdf": {"type": "diffuse", "reflectance": bitmap()}}
+        for i, (n_vertices, n_faces) in enumerate(key.slots):
+            props = mi.Properties()
+            props["bsdf"] = mi.load_dict({"type": rough_bsdf.PLUGIN, "roughness": 0.5,
+                                          "reflectance": {"type": "rgb", "value": [0.5, 0.5, 0.5]}})
+            scene[f"obj{i}"] = mi.Mesh(f"obj{i}", n_vertices, max(n_faces, 1), props=props,
+                                       has_vertex_normals=True, has_vertex_texcoords=False)
+        self.scene = mi.load_dict(scene)
+        self.params = mi.traverse(self.scene)
+        self._faces_written = [None] * len(key.slots)
+
+    def apply(self, spec: SceneSpec, meshes: list[shapes.Mesh]) -> None:
+        """Write ``spec`` (with its object meshes, in order) into the loaded scene."""
+        mi = backend.mitsuba()
+        p = self.params
+        cam = spec.camera
+        p["sensor.to_world"] = mi.AffineTransform4f(
+            frames.mitsuba_sensor_to_world(cam.tilt_deg, cam.r_m, cam.pan_deg))
+        p["sensor.x_fov"] = cam.fov_deg
+        self.set_light(spec.light.position_m, spec.light.intensity)
+        room = spec.room
+        res = room.texture_res
+        p["floor.bsdf.reflectance.data"] = mi.TensorXf(_texture(_freeze(room.floor_texture), res))
+        for k in range(room.n_walls):
+            p[f"wall{k}.to_world"] = mi.AffineTransform4f(
+                wall_to_world(k, room.n_walls, room.inradius_m, room.height_m, room.rotation_deg))
+            p[f"wall{k}.bsdf.reflectance.data"] = mi.TensorXf(_texture(_freeze(room.wall_textures[k]), res))
+        for i in range(len(self.key.slots)):
+            if i < len(spec.objects):
+                obj, mesh = spec.objects[i], meshes[i]
+                v, n = _object_vertices(obj, mesh)
+                faces = mesh.faces
+                p[f"obj{i}.bsdf.reflectance.value"] = mi.Color3f(*obj.reflectance)
+                p[f"obj{i}.bsdf.roughness"] = mi.Float(obj.roughness)
+            else:  # park the unused slot: a tiny copy of slot 0 far below the floor
+                v, n = _object_vertices(spec.objects[0], meshes[0]) if spec.objects else (None, None)
+                n_vertices = self.key.slots[i][0]
+                v = np.zeros((n_vertices, 3), np.float32) if v is None or len(v) != n_vertices else v
+                v = (v - v.mean(0)) * 1e-3 + np.array([0.0, 0.0, HIDDEN_DEPTH_M], np.float32)
+                n = np.tile(np.array([0.0, 0.0, 1.0], np.float32), (n_vertices, 1))
+                faces = meshes[0].faces if spec.objects and len(meshes[0].faces) == self.key.slots[i][1] \
+                    else np.zeros((max(self.key.slots[i][1], 1), 3), np.uint32)
+            p[f"obj{i}.vertex_positions"] = mi.Float(v.ravel())
+            p[f"obj{i}.vertex_normals"] = mi.Float(n.ravel())
+            if self._faces_written[i] is None or not np.array_equal(self._faces_written[i], faces):
+                p[f"obj{i}.faces"] = mi.UInt32(faces.astype(np.uint32).ravel())
+                self._faces_written[i] = faces
+        p.update()
+
+    def set_light(self, position_m, intensity) -> None:
+        """Move the point light and set its radiant intensity (W/sr per channel);
+        call ``self.params.update()`` after (``apply`` does)."""
+        mi = backend.mitsuba()
+        self.params["light.position"] = mi.Point3f(*[float(x) for x in position_m])
+        self.params["light.intensity.value"] = mi.Color3f(*[float(x) for x in intensity])
+
+    def render(self, spp: int, seed: int) -> np.ndarray:
+        """Render the current state: ``(res, res, 3)`` float32 linear RGB."""
+        mi = backend.mitsuba()
+        return np.array(mi.render(self.scene, spp=int(spp), seed=int(seed)), dtype=np.float32)
+
+
+@functools.lru_cache(maxsize=128)
+def _texture(frozen_params, size: int) -> np.ndarray:
+    return textures.make_texture(_thaw(frozen_params), size).astype(np.float32)
+
+
+class SceneBuilder:
+    """Renders specs, keeping one :class:`SceneTemplate` per structure it meets."""
+
+    def __init__(self, max_templates: int = 16):
+        self._templates: dict[TemplateKey, SceneTemplate] = {}
+        self.max_templates = max_templates
+
+    def template_for(self, spec: SceneSpec) -> SceneTemplate:
+        """The template holding ``spec`` (applied), loading one if this structure is new."""
+        meshes = [object_mesh(o) for o in spec.objects]
+        if len(meshes) > N_OBJECT_SLOTS:
+            raise SceneFileError(f"at most {N_OBJECT_SLOTS} objects per scene, got {len(meshes)}")
+        key = template_key(spec, meshes)
+        template = self._templates.get(key)
+        if template is None:
+            if len(self._templates) >= self.max_templates:
+                self._templates.pop(next(iter(self._templates)))
+            template = self._templates[key] = SceneTemplate(key)
+        template.apply(spec, meshes)
+        return template
+
+    def render(self, spec: SceneSpec) -> np.ndarray:
+        """Linear RGB image ``(res, res, 3)`` float32 of ``spec``."""
+        return self.template_for(spec).render(spec.render.spp, spec.render.seed)
+
+
+def build_naive(spec: SceneSpec) -> SceneTemplate:
+    """A fresh scene for one spec (load_dict every time): the reference way."""
+    meshes = [object_mesh(o) for o in spec.objects]
+    template = SceneTemplate(template_key(spec, meshes))
+    template.apply(spec, meshes)
+    return template

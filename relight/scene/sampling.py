@@ -1,0 +1,204 @@
+"""SID2 sampling rules: draw a random :class:`SceneSpec` like the paper's dataset.
+
+Paper, section "A synthetic dataset": 1-3 objects placed near the scene centre on the
+floor, never overlapping, each with a diffuse BSDF of random colour and roughness; a
+multi-sided room with flat textures on the walls; a point light at r in [20, 50] m,
+tilt in [30, 90] deg in steps of 5, pan in [0, 360) deg in steps of 1, colour near the
+Planckian locus; the camera at r = 20 m, pan 0, tilt in [10, 70] deg, looking at the
+centre.
+
+Every random choice comes from one ``numpy.random.Generator`` seeded per image, so an
+image's spec depends only on (dataset seed, image index) and the config.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from relight import colour
+from relight.scene import shapes, textures
+from relight.scene.spec import (CameraSpec, LightSpec, ObjectSpec, RenderSpec, RoomSpec,
+                                SceneSpec)
+
+
+class ConfigError(ValueError):
+    """A generator configuration value is out of range or unknown."""
+
+
+@dataclass(frozen=True)
+class GeneratorConfig:
+    """Settings of the SID2-style generator (units in the names; ranges inclusive)."""
+    res: int = 128
+    spp: int = 64
+    max_depth: int = 4
+    fov_deg: float = 40.0
+    camera_r_m: float = 20.0
+    camera_tilt_deg: tuple[float, float] = (10.0, 70.0)
+    light_r_m: tuple[float, float] = (20.0, 50.0)
+    light_tilt_deg: tuple[float, float] = (30.0, 90.0)
+    light_tilt_step_deg: float = 5.0
+    light_pan_step_deg: float = 1.0
+    light_strength: tuple[float, float] = (2.5, 4.0)   # irradiance at the centre, W/m^2
+    n_objects: tuple[int, int] = (1, 3)
+    object_size_m: tuple[float, float] = (0.8, 2.0)   # max horizontal radius after scaling
+    placement_radius_m: float = 3.5                    # object centres within this disc
+    object_gap_m: float = 0.1                          # minimum gap between bounding circles
+    families: tuple[str, ...] = ()                     # empty: all of shapes.FAMILIES
+    n_walls: tuple[int, int] = (4, 8)
+    room_inradius_m: tuple[float, float] = (100.0, 140.0)
+    wall_height_m: float = 80.0
+    texture_res: int = 128
+    split: tuple[float, float, float] = (0.8, 0.1, 0.1)
+    mesh_dir: str | None = None
+    mesh_fraction: float = 0.5   # share of objects taken from mesh_dir when given
+
+    def __post_init__(self):
+        def rng_ok(name, lo_min, hi_max):
+            lo, hi = getattr(self, name)
+            if not (lo_min <= lo <= hi <= hi_max):
+                raise ConfigError(f"{name}: expected {lo_min} <= lo <= hi <= {hi_max}, got {(lo, hi)}")
+        for name in ("res", "spp", "max_depth", "texture_res"):
+            if not isinstance(getattr(self, name), int) or getattr(self, name) < 1:
+                raise ConfigError(f"{name}: expected a positive integer, got {getattr(self, name)!r}")
+        rng_ok("camera_tilt_deg", -89, 89)
+        rng_ok("light_r_m", 0.1, 1e4)
+        rng_ok("light_tilt_deg", 0, 90)
+        rng_ok("n_objects", 1, 3)
+        rng_ok("n_walls", 3, 12)
+        rng_ok("object_size_m", 0.01, 100)
+        rng_ok("light_strength", 1e-6, 1e6)
+        rng_ok("room_inradius_m", 1, 1e5)
+        if self.room_inradius_m[0] < 2 * self.light_r_m[1]:
+            raise ConfigError("room_inradius_m must be at least twice the largest light distance "
+                              "(so a light near a wall never over-lights it)")
+        if self.room_inradius_m[0] <= self.camera_r_m:
+            raise ConfigError("the camera must stand inside the room")
+        if abs(sum(self.split) - 1.0) > 1e-9 or min(self.split) < 0:
+            raise ConfigError(f"split: three non-negative fractions summing to 1 expected, got {self.split}")
+        unknown = set(self.families) - set(shapes.FAMILIES)
+        if unknown:
+            raise ConfigError(f"unknown shape families {sorted(unknown)}; valid: {', '.join(shapes.FAMILIES)}")
+        if self.mesh_dir is not None and not mesh_files(self.mesh_dir):
+            raise ConfigError(f"--mesh-dir {self.mesh_dir}: no .obj or .ply files found")
+
+    @classmethod
+    def from_file(cls, path: str, **overrides) -> "GeneratorConfig":
+        """Load a JSON config (keys as the fields); ``overrides`` win over the file."""
+        try:
+            with open(path) as f:
+                data = json.load(f)
+        except (OSError, json.JSONDecodeError) as exc:
+            raise ConfigError(f"cannot read config {path}: {exc}") from None
+        if not isinstance(data, dict):
+            raise ConfigError(f"config {path}: expected a JSON object")
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = set(data) - names
+        if unknown:
+            raise ConfigError(f"config {path}: unknown keys {sorted(unknown)}")
+        data = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
+        data.update({k: v for k, v in overrides.items() if v is not None})
+        return cls(**data)
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def mesh_files(mesh_dir: str) -> list[str]:
+    """Sorted absolute paths of the .obj/.ply files in a folder (not recursive)."""
+    if not os.path.isdir(mesh_dir):
+        return []
+    return sorted(os.path.abspath(os.path.join(mesh_dir, f)) for f in os.listdir(mesh_dir)
+                  if f.lower().endswith((".obj", ".ply")))
+
+
+def image_rng(dataset_seed: int, index: int) -> np.random.Generator:
+    """The generator of image ``index``: independent of every other image."""
+    return np.random.default_rng(np.random.SeedSequence([int(dataset_seed), int(index)]))
+
+
+def split_of(image_id: str, fractions=(0.8, 0.1, 0.1)) -> str:
+    """Deterministic train/val/test split of an image id (hash of the id)."""
+    import hashlib
+    u = int.from_bytes(hashlib.sha256(image_id.encode()).digest()[:8], "big") / 2.0 ** 64
+    if u < fractions[0]:
+        return "train"
+    return "val" if u < fractions[0] + fractions[1] else "test"
+
+
+def _place_objects(rng: np.random.Generator, sizes_m: list[float], cfg: GeneratorConfig):
+    """Rejection-sample non-overlapping bounding circles inside the placement disc."""
+    for _attempt in range(200):
+        centres = []
+        for r in sizes_m:
+            for _try in range(50):
+                rho = cfg.placement_radius_m * math.sqrt(rng.uniform())
+                phi = rng.uniform(0.0, 2.0 * math.pi)
+                c = (rho * math.cos(phi), rho * math.sin(phi))
+                if all(math.hypot(c[0] - o[0], c[1] - o[1]) >= r + ro + cfg.object_gap_m
+                       for o, ro in zip(centres, sizes_m)):
+                    centres.append(c)
+                    break
+            else:
+                break
+        if len(centres) == len(sizes_m):
+            return centres
+        sizes_m = [s * 0.9 for s in sizes_m]  # crowded: shrink and retry
+    raise RuntimeError("could not place objects without overlap")  # unreachable for sane configs
+
+
+def sample_scene(cfg: GeneratorConfig, dataset_seed: int, index: int) -> SceneSpec:
+    """The spec of image ``index`` of a dataset (id is the zero-padded index)."""
+    rng = image_rng(dataset_seed, index)
+    cam_tilt = float(np.round(rng.uniform(*cfg.camera_tilt_deg), 2))
+    camera = CameraSpec(tilt_deg=cam_tilt, r_m=cfg.camera_r_m, pan_deg=0.0, fov_deg=cfg.fov_deg)
+
+    n_tilt = int(round((cfg.light_tilt_deg[1] - cfg.light_tilt_deg[0]) / cfg.light_tilt_step_deg))
+    tilt_l = cfg.light_tilt_deg[0] + cfg.light_tilt_step_deg * int(rng.integers(0, n_tilt + 1))
+    n_pan = int(round(360.0 / cfg.light_pan_step_deg))
+    pan_l = cfg.light_pan_step_deg * int(rng.integers(0, n_pan))
+    r_l = float(np.round(rng.uniform(*cfg.light_r_m), 3))
+    cct_k, duv, rgb = colour.sample_light_colour(rng)
+    light = LightSpec(r_m=r_l, pan_deg=float(pan_l), tilt_deg=float(tilt_l),
+                      rgb=tuple(float(c) for c in rgb),
+                      strength=float(np.round(rng.uniform(*cfg.light_strength), 4)),
+                      cct_k=float(cct_k), duv=float(duv))
+
+    n_walls = int(rng.integers(cfg.n_walls[0], cfg.n_walls[1] + 1))
+    room = RoomSpec(
+        n_walls=n_walls,
+        inradius_m=float(np.round(rng.uniform(*cfg.room_inradius_m), 3)),
+        height_m=cfg.wall_height_m,
+        rotation_deg=float(np.round(rng.uniform(0.0, 360.0 / n_walls), 3)),
+        wall_textures=tuple(textures.sample_texture_params(rng) for _ in range(n_walls)),
+        floor_texture=textures.sample_texture_params(rng),
+        texture_res=cfg.texture_res)
+
+    families = cfg.families or shapes.FAMILIES
+    user_meshes = mesh_files(cfg.mesh_dir) if cfg.mesh_dir else []
+    n_obj = int(rng.integers(cfg.n_objects[0], cfg.n_objects[1] + 1))
+    sizes = [float(np.round(rng.uniform(*cfg.object_size_m), 4)) for _ in range(n_obj)]
+    centres = _place_objects(rng, list(sizes), cfg)
+    objects = []
+    for size, centre in zip(sizes, centres):
+        if user_meshes and rng.uniform() < cfg.mesh_fraction:
+            family, params = "mesh", {}
+            mesh_path = user_meshes[int(rng.integers(0, len(user_meshes)))]
+        else:
+            family = str(families[int(rng.integers(0, len(families)))])
+            params, mesh_path = shapes.sample_shape_params(family, rng), None
+        objects.append(ObjectSpec(
+            family=family, params=params, mesh_path=mesh_path,
+            position_m=(float(np.round(centre[0], 4)), float(np.round(centre[1], 4))),
+            yaw_deg=float(np.round(rng.uniform(0.0, 360.0), 3)),
+            size_m=size,
+            reflectance=tuple(float(np.round(c, 4)) for c in rng.uniform(0.1, 0.85, 3)),
+            roughness=float(np.round(rng.uniform(0.0, 1.0), 4))))
+    render = RenderSpec(res=cfg.res, spp=cfg.spp, max_depth=cfg.max_depth,
+                        seed=int(rng.integers(0, 2 ** 31)))
+    return SceneSpec(id=f"{index:06d}", camera=camera, light=light, room=room,
+                     objects=tuple(objects), render=render)

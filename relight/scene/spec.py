@@ -1,0 +1,261 @@
+"""Scene description: versioned, human-readable JSON that fully determines one render.
+
+A scene file (format ``relight.scene/v1``) is the contract between the generator,
+``relight render``, ``relight compare`` and the inverse-rendering baseline: the same
+file, seed and machine give the same image, bit for bit.
+
+Units: metres, degrees, linear Rec.709 RGB. Frames: see :mod:`relight.frames`.
+Procedural textures and shapes are stored as their parameters (which determine them
+exactly), never as pixels or vertices; user meshes are stored as a file path.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from relight import frames
+
+SCENE_FORMAT = "relight.scene/v1"
+
+
+class SceneFileError(ValueError):
+    """A scene file is unreadable, of an unknown version or inconsistent."""
+
+
+def _finite(name: str, *values: float) -> None:
+    for v in values:
+        if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
+            raise SceneFileError(f"{name}: expected a finite number, got {v!r}")
+
+
+@dataclass(frozen=True)
+class CameraSpec:
+    """Pinhole camera at spherical (r_m, pan_deg, tilt_deg), looking at the origin, up +Z."""
+    tilt_deg: float
+    r_m: float = 20.0
+    pan_deg: float = 0.0
+    fov_deg: float = 40.0  # horizontal field of view
+
+    def __post_init__(self):
+        _finite("camera", self.tilt_deg, self.r_m, self.pan_deg, self.fov_deg)
+        if not -89.0 <= self.tilt_deg <= 89.0:
+            raise SceneFileError(f"camera.tilt_deg must be in [-89, 89], got {self.tilt_deg}")
+        if self.r_m <= 0 or not 1.0 <= self.fov_deg <= 170.0:
+            raise SceneFileError(f"camera: r_m > 0 and fov_deg in [1, 170] expected, got "
+                                 f"{self.r_m}, {self.fov_deg}")
+
+    @property
+    def position_m(self) -> np.ndarray:
+        return frames.camera_position(self.tilt_deg, self.r_m, self.pan_deg)
+
+
+@dataclass(frozen=True)
+class LightSpec:
+    """Point light at spherical (r_m, pan_deg, tilt_deg) with colour and strength.
+
+    ``rgb`` is the unit-norm linear colour. ``strength`` is the irradiance the light
+    gives at the scene centre on a surface facing it (W/m^2); the emitter's radiant
+    intensity is ``strength * r_m**2 * sqrt(3) * rgb`` (W/sr), so exposure does not
+    depend on the light's distance, and a white light has per-channel intensity
+    ``strength * r_m**2``.
+    """
+    r_m: float
+    pan_deg: float
+    tilt_deg: float
+    rgb: tuple[float, float, float]
+    strength: float = math.pi
+    cct_k: float | None = None
+    duv: float | None = None
+
+    def __post_init__(self):
+        _finite("light", self.r_m, self.pan_deg, self.tilt_deg, self.strength)
+        rgb = tuple(float(c) for c in self.rgb)
+        if len(rgb) != 3:
+            raise SceneFileError(f"light.rgb: expected 3 numbers, got {self.rgb!r}")
+        _finite("light.rgb", *rgb)
+        if min(rgb) < 0 or max(rgb) <= 0:
+            raise SceneFileError(f"light.rgb: expected non-negative, non-zero values, got {rgb}")
+        norm = math.sqrt(sum(c * c for c in rgb))
+        object.__setattr__(self, "rgb", tuple(c / norm for c in rgb))
+        if self.r_m <= 0 or self.strength <= 0:
+            raise SceneFileError("light: r_m and strength must be positive")
+
+    @property
+    def position_m(self) -> np.ndarray:
+        return frames.spherical_to_cartesian(self.r_m, self.pan_deg, self.tilt_deg)
+
+    @property
+    def intensity(self) -> np.ndarray:
+        """Radiant intensity per channel (W/sr) of the point emitter."""
+        return self.strength * self.r_m ** 2 * math.sqrt(3.0) * np.asarray(self.rgb)
+
+
+@dataclass(frozen=True)
+class RoomSpec:
+    """Regular ``n_walls``-sided room around the origin, no ceiling.
+
+    Walls stand at distance ``inradius_m`` from the centre; with inradius >= 2 x the
+    largest light distance, a light never gives a wall more irradiance than it gives
+    the scene centre. ``rotation_deg`` turns the polygon about +Z. Each wall and the
+    floor carry a procedural texture (parameters of :mod:`relight.scene.textures`),
+    tiled ``wall_tiles`` times across a wall and every ``floor_tile_m`` metres.
+    """
+    n_walls: int
+    inradius_m: float
+    height_m: float
+    rotation_deg: float
+    wall_textures: tuple[dict, ...]
+    floor_texture: dict
+    texture_res: int = 128
+
+    def __post_init__(self):
+        if not isinstance(self.n_walls, int) or not 3 <= self.n_walls <= 12:
+            raise SceneFileError(f"room.n_walls must be an integer in [3, 12], got {self.n_walls!r}")
+        _finite("room", self.inradius_m, self.height_m, self.rotation_deg)
+        if len(self.wall_textures) != self.n_walls:
+            raise SceneFileError(f"room: {self.n_walls} walls but {len(self.wall_textures)} textures")
+        object.__setattr__(self, "wall_textures", tuple(dict(t) for t in self.wall_textures))
+
+
+@dataclass(frozen=True)
+class ObjectSpec:
+    """One object resting on the floor.
+
+    The mesh (procedural ``family`` + ``params``, or ``mesh_path`` for a user file) is
+    normalised in object space (centred on the z axis, min z = 0, max horizontal radius
+    1), then scaled uniformly by ``size_m``, turned by ``yaw_deg`` about +Z and moved
+    to ``position_m`` = (x, y) on the floor. Material: rough diffuse (Oren-Nayar).
+    """
+    family: str
+    params: dict
+    position_m: tuple[float, float]
+    yaw_deg: float
+    size_m: float
+    reflectance: tuple[float, float, float]
+    roughness: float
+    mesh_path: str | None = None
+
+    def __post_init__(self):
+        _finite("object", *self.position_m, self.yaw_deg, self.size_m, *self.reflectance, self.roughness)
+        object.__setattr__(self, "position_m", tuple(float(v) for v in self.position_m))
+        object.__setattr__(self, "reflectance", tuple(float(v) for v in self.reflectance))
+        if len(self.position_m) != 2 or len(self.reflectance) != 3:
+            raise SceneFileError("object: position_m needs 2 numbers and reflectance 3")
+        if not 0 <= self.roughness <= 1 or self.size_m <= 0 or not all(0 <= c <= 1 for c in self.reflectance):
+            raise SceneFileError("object: roughness and reflectance in [0, 1], size_m > 0 expected")
+
+
+@dataclass(frozen=True)
+class RenderSpec:
+    """Image size (square, pixels), samples per pixel, path depth and sampler seed."""
+    res: int = 128
+    spp: int = 64
+    max_depth: int = 4
+    seed: int = 0
+
+    def __post_init__(self):
+        for name in ("res", "spp", "max_depth", "seed"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or isinstance(v, bool) or v < (0 if name == "seed" else 1):
+                raise SceneFileError(f"render.{name}: expected a positive integer, got {v!r}")
+        if self.seed >= 2 ** 32:
+            raise SceneFileError("render.seed must fit in 32 bits")
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    """Everything that determines one image."""
+    id: str
+    camera: CameraSpec
+    light: LightSpec
+    room: RoomSpec
+    objects: tuple[ObjectSpec, ...]
+    render: RenderSpec = field(default_factory=RenderSpec)
+    format: str = SCENE_FORMAT
+
+    def __post_init__(self):
+        if self.format != SCENE_FORMAT:
+            raise SceneFileError(f"unknown scene format {self.format!r}, expected {SCENE_FORMAT!r}")
+        object.__setattr__(self, "objects", tuple(self.objects))
+
+    @property
+    def pan_rel_deg(self) -> float:
+        return float(frames.pan_rel_deg(self.light.pan_deg, self.camera.pan_deg))
+
+    def with_light(self, pan_rel_deg: float | None = None, tilt_deg: float | None = None,
+                   rgb=None) -> "SceneSpec":
+        """The same scene under another light (direction relative to the camera; colour
+        unit-normalised); distance and strength are kept."""
+        light = self.light
+        changes = {}
+        if pan_rel_deg is not None:
+            changes["pan_deg"] = float(frames.wrap360(self.camera.pan_deg + float(pan_rel_deg)))
+        if tilt_deg is not None:
+            changes["tilt_deg"] = float(tilt_deg)
+        if rgb is not None:
+            changes.update(rgb=tuple(float(c) for c in rgb), cct_k=None, duv=None)
+        return dataclasses.replace(self, light=dataclasses.replace(light, **changes))
+
+    # --- JSON ---------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        d = dataclasses.asdict(self)
+        return {"format": d.pop("format"), **d}
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=1, sort_keys=False)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "SceneSpec":
+        if not isinstance(d, dict):
+            raise SceneFileError("a scene file must hold a JSON object")
+        if d.get("format") != SCENE_FORMAT:
+            raise SceneFileError(f"unknown scene format {d.get('format')!r}, expected {SCENE_FORMAT!r}")
+        try:
+            room = dict(d["room"])
+            room["wall_textures"] = tuple(room["wall_textures"])
+            return cls(
+                id=str(d["id"]),
+                camera=CameraSpec(**d["camera"]),
+                light=LightSpec(**{**d["light"], "rgb": tuple(d["light"]["rgb"])}),
+                room=RoomSpec(**room),
+                objects=tuple(ObjectSpec(**{**o, "position_m": tuple(o["position_m"]),
+                                            "reflectance": tuple(o["reflectance"])})
+                              for o in d["objects"]),
+                render=RenderSpec(**d.get("render", {})),
+            )
+        except (KeyError, TypeError) as exc:
+            raise SceneFileError(f"malformed scene description: {exc}") from None
+
+    @classmethod
+    def from_json(cls, text: str) -> "SceneSpec":
+        try:
+            d = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise SceneFileError(f"scene file is not valid JSON: {exc}") from None
+        return cls.from_dict(d)
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write atomically (temporary file, then rename)."""
+        path = os.fspath(path)
+        tmp = f"{path}.tmp{os.getpid()}"
+        with open(tmp, "w") as f:
+            f.write(self.to_json())
+        os.replace(tmp, path)
+
+
+def load_scene(path: str | os.PathLike) -> SceneSpec:
+    """Read a scene file; :class:`SceneFileError` names the file on any problem."""
+    try:
+        with open(path) as f:
+            text = f.read()
+    except OSError as exc:
+        raise SceneFileError(f"cannot read scene file {os.fspath(path)}: {exc.strerror}") from None
+    try:
+        return SceneSpec.from_json(text)
+    except SceneFileError as exc:
+        raise SceneFileError(f"{os.fspath(path)}: {exc}") from None
