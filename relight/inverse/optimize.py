@@ -1,0 +1,384 @@
+"""Recover a point light's direction and colour from one image whose scene is known.
+
+Analysis by synthesis: render the known scene under a candidate light through a
+loaded :class:`~relight.scene.build.SceneTemplate` (the scene is never rebuilt per
+step, only ``light.position`` / ``light.intensity`` change) and minimise the relative
+squared error to the target image, in linear RGB.
+
+Colour (closed form). The render is linear in the light's RGB radiant intensity, so
+for a fixed direction the best colour is per-channel least squares against a render
+``R`` under unit white light: ``k_c = <I_c, R_c> / <R_c, R_c>``; the light colour is
+``k / |k|``. The direction problem is therefore 2-D (3-D with ``fit_radius``): the
+*variable-projection* residual ``r(x) = (I - k(x) * R(x)) / |I|``, loss ``|r|^2``.
+
+Direction gradient (the estimator, chosen with evidence). Mitsuba 3.9 registers a
+point light's ``position`` as non-differentiable: the ``path``/``direct``
+integrators return only the shading term of d(image)/d(position), about 0.22-0.24 of
+the finite-difference value once a cast shadow moves (issue 5 measurements; reproduced
+by ``benchmarks/bench_inverse.py``), projective integrators return 0 or refuse, and a
+projective area-light substitute costs ~100 s per gradient. Shadows are the strongest
+direction cue in our scenes, so a shading-only gradient is biased exactly where it
+matters. We therefore use **central finite differences with common random numbers**
+(the ``+h`` and ``-h`` renders use the same sampler seed as the centre, so the noise
+largely cancels and the estimate includes shadow-edge terms), taken in local
+tangent-plane coordinates of the light direction (arc steps along pan and along tilt,
+in degrees, so the zenith is not singular). The FD Jacobian of the residual feeds a
+Levenberg-Marquardt step; each level keeps its sampler seed fixed, so the objective is
+deterministic and accepted steps always lower it. Cost: 4 renders per Jacobian (6 with
+the radius) + 1 per trial step, at 32-64 px and 8-16 samples per pixel.
+
+Coarse to fine: a grid of pan/tilt candidates at 32 px / few samples (``init="grid"``)
+or a given start (network prediction, predictions file), then LM at each
+:class:`Level` (coarse: large FD step, small image; fine: 0.5 deg step, 64 px), and a
+final colour fit at more samples. Stops by step tolerance, iteration cap or time budget.
+
+Units: degrees for angles (pan relative to the camera, 0 = front, 90 = camera's right;
+tilt = elevation), metres for the radius, seconds for time.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from relight import frames
+from relight.scene.sampling import ConfigError
+from relight.scene.spec import SceneSpec
+
+
+class InverseError(ConfigError):
+    """Inverse rendering cannot run on these inputs (one-line reason)."""
+
+
+@dataclass(frozen=True)
+class Level:
+    """One resolution level of the descent.
+
+    res: render size in pixels (must divide the target image size);
+    spp: samples per pixel; fd_step_deg: central-difference half-step (arc degrees);
+    max_step_deg: largest accepted LM step (arc degrees); max_iters: LM iterations;
+    tol_deg: an accepted step shorter than this ends the level.
+    """
+    res: int
+    spp: int
+    fd_step_deg: float
+    max_step_deg: float
+    max_iters: int
+    tol_deg: float
+
+    def __post_init__(self):
+        if self.res < 4 or self.spp < 1 or self.max_iters < 0:
+            raise InverseError(f"level: res >= 4, spp >= 1, max_iters >= 0 expected, got {self}")
+        if not (self.fd_step_deg > 0 and self.max_step_deg > 0 and self.tol_deg > 0):
+            raise InverseError(f"level: positive fd_step_deg, max_step_deg, tol_deg expected, got {self}")
+
+
+DEFAULT_LEVELS = (
+    Level(res=32, spp=8, fd_step_deg=2.0, max_step_deg=15.0, max_iters=12, tol_deg=0.1),
+    Level(res=64, spp=16, fd_step_deg=0.5, max_step_deg=3.0, max_iters=8, tol_deg=0.02),
+)
+
+
+@dataclass(frozen=True)
+class InvertConfig:
+    """Settings of :func:`invert` (see the module docstring).
+
+    grid_*: the coarse search of ``init="grid"`` (pan_rel every ``grid_pan_step_deg``
+    at each of ``grid_tilts_deg``, plus the zenith), rendered at ``grid_res`` /
+    ``grid_spp``; the ``grid_keep`` best start the first level. ``max_iters`` caps LM
+    iterations over all levels and starts; ``time_budget_s`` caps wall time per image
+    (checked between iterations). ``colour_spp``: samples of the final colour render
+    (at the last level's resolution). ``fit_radius``: also fit the light distance.
+    """
+    levels: tuple[Level, ...] = DEFAULT_LEVELS
+    grid_res: int = 32
+    grid_spp: int = 4
+    grid_pan_step_deg: float = 30.0
+    grid_tilts_deg: tuple[float, ...] = (35.0, 50.0, 65.0, 80.0)
+    grid_keep: int = 3
+    max_iters: int = 60
+    time_budget_s: float = 60.0
+    colour_spp: int = 64
+    fit_radius: bool = False
+    radius_fd_step: float = 0.03     # relative
+    seed: int = 1
+
+    def __post_init__(self):
+        if not self.levels:
+            raise InverseError("at least one level is needed")
+        if self.max_iters < 0 or self.time_budget_s <= 0 or self.grid_keep < 1:
+            raise InverseError("max_iters >= 0, time_budget_s > 0 and grid_keep >= 1 expected")
+        if not 0 < self.grid_pan_step_deg <= 180:
+            raise InverseError(f"grid_pan_step_deg must be in (0, 180], got {self.grid_pan_step_deg}")
+
+
+@dataclass
+class InverseResult:
+    """What :func:`invert` found for one image."""
+    pan_rel_deg: float
+    tilt_deg: float
+    r_m: float
+    rgb: np.ndarray              # unit norm, linear
+    loss: float                  # relative squared error at the last level
+    iterations: int              # LM iterations (all starts and levels)
+    renders: int                 # every render, grid and colour included
+    seconds: float
+    stopped: str                 # "converged", "max_iters" or "time_budget"
+    trace: list = field(default_factory=list)
+
+    def entry(self, image_id: str) -> dict:
+        """A ``relight.predictions/v1`` entry (plus the cost figures)."""
+        return {"id": image_id, "pan_deg": float(self.pan_rel_deg), "tilt_deg": float(self.tilt_deg),
+                "rgb": [float(c) for c in self.rgb], "r_m": float(self.r_m), "loss": float(self.loss),
+                "iterations": self.iterations, "renders": self.renders,
+                "seconds": round(self.seconds, 3), "stopped": self.stopped}
+
+
+# --- pure helpers ------------------------------------------------------------------
+
+def downsample(image: np.ndarray, res: int) -> np.ndarray:
+    """Box-average a square ``(H, H, 3)`` image to ``(res, res, 3)`` (H a multiple of
+    res). With Mitsuba's box pixel filter this is the expected image at ``res``."""
+    image = np.asarray(image, dtype=np.float64)
+    if image.ndim != 3 or image.shape[2] != 3 or image.shape[0] != image.shape[1]:
+        raise InverseError(f"expected a square (H, H, 3) image, got shape {image.shape}")
+    h = image.shape[0]
+    if h % res:
+        raise InverseError(f"image size {h} px is not a multiple of the render size {res} px")
+    f = h // res
+    return image.reshape(res, f, res, f, 3).mean(axis=(1, 3))
+
+
+def colour_fit(target: np.ndarray, render: np.ndarray) -> tuple[np.ndarray, float]:
+    """Best per-channel scale of ``render`` toward ``target`` (least squares).
+
+    Returns ``(k (3,), loss)`` with ``k_c = <I_c, R_c> / <R_c, R_c>`` and
+    ``loss = |I - k R|^2 / |I|^2`` (0 = perfect, 1 = as bad as a black image).
+    """
+    i = np.asarray(target, dtype=np.float64).reshape(-1, 3)
+    r = np.asarray(render, dtype=np.float64).reshape(-1, 3)
+    rr = np.einsum("nc,nc->c", r, r)
+    ir = np.einsum("nc,nc->c", i, r)
+    k = np.where(rr > 0, ir / np.where(rr > 0, rr, 1.0), 0.0)
+    k = np.maximum(k, 0.0)
+    ii = float(np.sum(i * i))
+    loss = float(np.sum((i - k * r) ** 2)) / ii if ii > 0 else float("inf")
+    return k, loss
+
+
+def tangent_move(pan_deg: float, tilt_deg: float, du_deg: float, dv_deg: float) -> tuple[float, float]:
+    """Move a direction by arc steps: ``du`` along increasing pan (horizontal), ``dv``
+    along increasing tilt (toward the zenith), both in degrees of arc; returns
+    ``(pan_deg in [0, 360), tilt_deg in [-90, 90])``. Regular at the zenith."""
+    p, t = math.radians(pan_deg), math.radians(tilt_deg)
+    d = frames.direction(pan_deg, tilt_deg)
+    e_pan = np.array([-math.sin(p), math.cos(p), 0.0])
+    e_tilt = np.array([-math.sin(t) * math.cos(p), -math.sin(t) * math.sin(p), math.cos(t)])
+    # exact geodesic step of length |(du, dv)| in the tangent direction
+    step = math.radians(du_deg) * e_pan + math.radians(dv_deg) * e_tilt
+    angle = float(np.linalg.norm(step))
+    moved = d if angle == 0 else d * math.cos(angle) + step / angle * math.sin(angle)
+    _, pan, tilt = frames.cartesian_to_spherical(moved)
+    if abs(float(tilt)) > 89.9999:  # at the pole keep the pan we came with
+        pan = pan_deg
+    return float(pan), float(tilt)
+
+
+# --- rendering ----------------------------------------------------------------------
+
+class LightRenderer:
+    """Renders the known scene under a candidate light at several sizes, counting renders.
+
+    One :class:`SceneTemplate` per resolution, loaded once per image; each render only
+    writes the light position and a white intensity ``r^2`` W/sr per channel (so the
+    irradiance at the scene centre does not depend on the distance).
+    """
+
+    def __init__(self, spec: SceneSpec, builder=None):
+        from relight import backend
+        backend.init()
+        if builder is None:
+            from relight.scene.build import SceneBuilder
+            builder = SceneBuilder()
+        self.spec, self.builder = spec, builder
+        self._templates: dict[int, object] = {}
+        self.renders = 0
+
+    def template(self, res: int):
+        tpl = self._templates.get(res)
+        if tpl is None:
+            spec = dataclasses.replace(self.spec, render=dataclasses.replace(self.spec.render, res=res))
+            tpl = self._templates[res] = self.builder.template_for(spec)
+        return tpl
+
+    def render(self, pan_rel_deg: float, tilt_deg: float, r_m: float, res: int, spp: int,
+               seed: int) -> np.ndarray:
+        """``(res, res, 3)`` float64 linear render under a white light at (r, pan_rel, tilt)."""
+        tpl = self.template(res)
+        pan_deg = self.spec.camera.pan_deg + pan_rel_deg
+        tpl.set_light(frames.spherical_to_cartesian(r_m, pan_deg, tilt_deg), (r_m * r_m,) * 3)
+        tpl.params.update()
+        self.renders += 1
+        return tpl.render(spp, seed).astype(np.float64)
+
+
+# --- the optimiser -------------------------------------------------------------------
+
+@dataclass
+class _State:
+    pan: float
+    tilt: float
+    r: float
+    loss: float = float("inf")
+    k: np.ndarray = field(default_factory=lambda: np.ones(3))
+
+
+class _Run:
+    """Book-keeping of one :func:`invert` call: budget, counters, trace."""
+
+    def __init__(self, renderer: LightRenderer, target: np.ndarray, cfg: InvertConfig, t0: float):
+        self.renderer, self.cfg, self.t0 = renderer, cfg, t0
+        self.target_full = np.asarray(target, dtype=np.float64)
+        self._targets: dict[int, np.ndarray] = {}
+        self.iterations = 0
+        self.trace: list[dict] = []
+        self.stopped = "converged"
+
+    def target(self, res: int) -> np.ndarray:
+        if res not in self._targets:
+            self._targets[res] = downsample(self.target_full, res)
+        return self._targets[res]
+
+    def out_of_budget(self) -> bool:
+        if self.iterations >= self.cfg.max_iters:
+            self.stopped = "max_iters"
+            return True
+        if time.perf_counter() - self.t0 >= self.cfg.time_budget_s:
+            self.stopped = "time_budget"
+            return True
+        return False
+
+    def residual(self, s: _State, res: int, spp: int, seed: int) -> tuple[np.ndarray, float, np.ndarray]:
+        """Variable-projection residual ``(I - k R) / |I|`` (flat), its loss and ``k``."""
+        target = self.target(res)
+        render = self.renderer.render(s.pan, s.tilt, s.r, res, spp, seed)
+        k, loss = colour_fit(target, render)
+        norm = math.sqrt(float(np.sum(target * target))) or 1.0
+        return ((target - k * render) / norm).ravel(), loss, k
+
+    def log(self, stage: str, s: _State, start: int = 0) -> None:
+        k = s.k / (np.linalg.norm(s.k) or 1.0)
+        self.trace.append({"iteration": self.iterations, "stage": stage, "start": start,
+                           "loss": s.loss, "pan_deg": s.pan, "tilt_deg": s.tilt, "r_m": s.r,
+                           "rgb": [float(c) for c in k], "renders": self.renderer.renders,
+                           "seconds": round(time.perf_counter() - self.t0, 4)})
+
+    def moved(self, s: _State, delta: np.ndarray) -> _State:
+        pan, tilt = tangent_move(s.pan, s.tilt, float(delta[0]), float(delta[1]))
+        r = s.r * (1.0 + float(delta[2])) if len(delta) > 2 else s.r
+        return _State(pan, tilt, max(r, 1e-3))
+
+    def descend(self, s: _State, level: Level, seed: int, stage: str, start: int = 0) -> _State:
+        """Levenberg-Marquardt with a central-difference (common random numbers) Jacobian."""
+        n_par = 3 if self.cfg.fit_radius else 2
+        steps = np.array([level.fd_step_deg, level.fd_step_deg, self.cfg.radius_fd_step][:n_par])
+        res_vec, s.loss, s.k = self.residual(s, level.res, level.spp, seed)
+        self.log(stage, s, start)
+        lam = 1e-3
+        for _ in range(level.max_iters):
+            if self.out_of_budget():
+                break
+            self.iterations += 1
+            jac = np.empty((res_vec.size, n_par))
+            for j in range(n_par):
+                e = np.zeros(n_par)
+                e[j] = steps[j]
+                plus, _, _ = self.residual(self.moved(s, e), level.res, level.spp, seed)
+                minus, _, _ = self.residual(self.moved(s, -e), level.res, level.spp, seed)
+                jac[:, j] = (plus - minus) / (2.0 * steps[j])
+            jtj, grad = jac.T @ jac, jac.T @ res_vec
+            accepted = False
+            while lam < 1e8:
+                delta = -np.linalg.solve(jtj + lam * (np.diag(np.diag(jtj)) + 1e-12 * np.eye(n_par)), grad)
+                arc = float(np.hypot(delta[0], delta[1]))
+                if arc > level.max_step_deg:
+                    delta *= level.max_step_deg / arc
+                    arc = level.max_step_deg
+                trial = self.moved(s, delta)
+                trial_vec, trial.loss, trial.k = self.residual(trial, level.res, level.spp, seed)
+                if trial.loss < s.loss:
+                    s, res_vec, accepted = trial, trial_vec, True
+                    lam = max(lam / 3.0, 1e-7)
+                    break
+                lam *= 4.0
+            self.log(stage, s, start)
+            if not accepted or arc < level.tol_deg:
+                break
+        return s
+
+
+def grid_starts(cfg: InvertConfig) -> list[tuple[float, float]]:
+    """(pan_rel_deg, tilt_deg) candidates of the coarse search, zenith last."""
+    pans = np.arange(0.0, 360.0, cfg.grid_pan_step_deg)
+    return [(float(p), float(t)) for t in cfg.grid_tilts_deg for p in pans] + [(0.0, 90.0)]
+
+
+def invert(spec: SceneSpec, image: np.ndarray, init=None, cfg: InvertConfig | None = None,
+           builder=None) -> InverseResult:
+    """Recover the light of ``image`` (linear ``(H, H, 3)``) rendered from ``spec``'s scene.
+
+    Args:
+        spec: the scene (geometry, materials, camera; its light radius starts the fit,
+            its light direction and colour are NOT used).
+        image: the target, linear RGB; H a multiple of every level's resolution.
+        init: ``None`` / ``"grid"`` for the coarse search, or a ``(pan_rel_deg,
+            tilt_deg)`` start (e.g. a network prediction).
+        cfg: settings; ``builder``: a shared :class:`SceneBuilder` (optional).
+    """
+    cfg = cfg or InvertConfig()
+    t0 = time.perf_counter()
+    renderer = LightRenderer(spec, builder)
+    run = _Run(renderer, image, cfg, t0)
+    for lv in cfg.levels:
+        run.target(lv.res)  # validates sizes before any work
+    r0 = spec.light.r_m
+    first = cfg.levels[0]
+    if init is None or isinstance(init, str):
+        if init not in (None, "grid"):
+            raise InverseError(f"init must be 'grid' or a (pan_rel_deg, tilt_deg) pair, got {init!r}")
+        target = run.target(cfg.grid_res)
+        scored = []
+        for pan, tilt in grid_starts(cfg):
+            render = renderer.render(pan, tilt, r0, cfg.grid_res, cfg.grid_spp, cfg.seed)
+            k, loss = colour_fit(target, render)
+            scored.append((loss, pan, tilt, k))
+        scored.sort(key=lambda x: x[0])
+        best = _State(scored[0][1], scored[0][2], r0, scored[0][0], scored[0][3])
+        run.log("grid", best)
+        starts = [_State(p, t, r0) for _, p, t, _ in scored[:cfg.grid_keep]]
+    else:
+        pan, tilt = (float(v) for v in init)
+        if not (math.isfinite(pan) and math.isfinite(tilt)):
+            raise InverseError(f"init direction must be finite, got {init!r}")
+        starts = [_State(float(frames.wrap360(pan)), float(np.clip(tilt, -90.0, 90.0)), r0)]
+    ends = [run.descend(s, first, cfg.seed, "L0", i) for i, s in enumerate(starts)]
+    s = min(ends, key=lambda e: e.loss)
+    for n, lv in enumerate(cfg.levels[1:], start=1):
+        if run.out_of_budget():
+            break
+        s = run.descend(s, lv, cfg.seed + n, f"L{n}")
+    # final colour: more samples at the last level's size, same direction
+    last = cfg.levels[-1]
+    _, loss, k = run.residual(s, last.res, cfg.colour_spp, cfg.seed + 100)
+    s.loss, s.k = loss, k
+    run.log("colour", s)
+    norm = np.linalg.norm(k)
+    if not norm > 0:
+        raise InverseError("the fitted light colour is zero: the scene looks unlit at this direction")
+    return InverseResult(pan_rel_deg=float(frames.wrap360(s.pan)), tilt_deg=s.tilt, r_m=s.r,
+                         rgb=k / norm, loss=loss, iterations=run.iterations,
+                         renders=renderer.renders, seconds=time.perf_counter() - t0,
+                         stopped=run.stopped, trace=run.trace)

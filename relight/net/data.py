@@ -1,0 +1,144 @@
+"""Network input encoding and the torch Dataset over a ``relight generate`` folder.
+
+Input encoding (the same at training and prediction time):
+    1. an 8-bit sRGB image (the dataset PNGs; EXR/linear input is first encoded with
+       :func:`relight.render.to_srgb8`, exactly as the PNGs were written);
+    2. centre-cropped to a square (the shorter side; dataset images are square so
+       this is a no-op) and resized to ``res x res`` with PIL's bilinear filter
+       (antialiased when shrinking; a no-op when the size already matches);
+    3. scaled to float32 in [0, 1], channels first ``(3, res, res)``.
+
+Augmentation keeps labels true: a horizontal flip mirrors the scene, so the light's
+pan relative to the camera becomes ``360 - pan_rel``; in the 7-vector
+``y0 = sin(pan_c - pan_l) = -sin(pan_rel)`` changes sign and everything else stays.
+"""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import torch
+from torch.utils.data import Dataset
+
+from relight.dataset import DatasetError, read_manifest, safe_join
+
+SPLITS = ("train", "val", "test", "all")
+
+
+def prepare_srgb8(image_srgb8: np.ndarray, res: int) -> torch.Tensor:
+    """8-bit sRGB ``(H, W, 3)`` uint8 -> network input ``(3, res, res)`` float32 in [0, 1]."""
+    from PIL import Image
+    img = np.asarray(image_srgb8)
+    if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
+        raise ValueError(f"expected an (H, W, 3) uint8 image, got {img.dtype} {img.shape}")
+    h, w = img.shape[:2]
+    if h != w:
+        side = min(h, w)
+        top, left = (h - side) // 2, (w - side) // 2
+        img = img[top:top + side, left:left + side]
+    if img.shape[0] != res:
+        img = np.asarray(Image.fromarray(img).resize((res, res), Image.BILINEAR))
+    return torch.from_numpy(np.ascontiguousarray(img).transpose(2, 0, 1).astype(np.float32) / 255.0)
+
+
+def flip_y(y):
+    """Target of the horizontally flipped image: pan_rel -> 360 - pan_rel (y0 -> -y0).
+
+    Works on numpy arrays and torch tensors of shape ``(..., 7)``.
+    """
+    out = y.clone() if isinstance(y, torch.Tensor) else np.array(y, dtype=np.float64, copy=True)
+    out[..., 0] = -out[..., 0]
+    return out
+
+
+def flip_image(x: torch.Tensor) -> torch.Tensor:
+    """Mirror a ``(..., H, W)`` image left-right."""
+    return torch.flip(x, dims=(-1,))
+
+
+def split_records(records: list[dict], split: str) -> list[dict]:
+    """Records of one split ("train", "val", "test") or all of them ("all")."""
+    if split not in SPLITS:
+        raise DatasetError(f"unknown split {split!r}; expected one of {', '.join(SPLITS)}")
+    return list(records) if split == "all" else [r for r in records if r.get("split") == split]
+
+
+def _read_png_srgb8(path: str) -> np.ndarray:
+    from PIL import Image, UnidentifiedImageError
+    try:
+        with Image.open(path) as im:
+            return np.asarray(im.convert("RGB"))
+    except FileNotFoundError:
+        raise DatasetError(f"dataset image missing: {path}") from None
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as exc:
+        raise DatasetError(f"cannot read dataset image {path}: {str(exc).splitlines()[0][:120]}") from None
+
+
+class LightDataset(Dataset):
+    """Images and 7-vector targets of one split of a dataset folder.
+
+    Items are ``(image (3, res, res) float32, y (7,) float32, index)``. With
+    ``flip=True`` each item is mirrored with probability 1/2, decided by
+    ``(seed, epoch, index)`` alone (set :attr:`epoch` each epoch), so a resumed run
+    sees the same augmentation. Decoded images are cached in memory as uint8
+    (``res * res * 3`` bytes each) when ``cache`` is true.
+    """
+
+    def __init__(self, data_dir: str | os.PathLike, split: str = "train", res: int = 128,
+                 flip: bool = False, seed: int = 0, cache: bool = True, records: list[dict] | None = None):
+        self.data_dir = os.fspath(data_dir)
+        self.split = split
+        self.records = split_records(read_manifest(self.data_dir) if records is None else records, split)
+        self.res, self.flip, self.seed, self.cache = res, flip, seed, cache
+        self.epoch = 0
+        self._cache: dict[str, np.ndarray] = {}
+
+    def __len__(self) -> int:
+        return len(self.records)
+
+    def refresh(self) -> int:
+        """Re-read the manifest (a dataset still being generated grows); returns new size.
+        Records keep their file order, so earlier indices are unchanged."""
+        self.records = split_records(read_manifest(self.data_dir), self.split)
+        return len(self.records)
+
+    def image_srgb8(self, i: int) -> np.ndarray:
+        """The record's image at network size, ``(res, res, 3)`` uint8 (cached)."""
+        rec = self.records[i]
+        key = rec["id"]
+        img = self._cache.get(key)
+        if img is None:
+            raw = _read_png_srgb8(safe_join(self.data_dir, rec["image"]))
+            img = (prepare_srgb8(raw, self.res).numpy().transpose(1, 2, 0) * 255.0 + 0.5).astype(np.uint8)
+            if self.cache:
+                self._cache[key] = img
+        return img
+
+    def target(self, i: int) -> np.ndarray:
+        y = np.asarray(self.records[i]["y"], dtype=np.float64)
+        if y.shape != (7,) or not np.all(np.isfinite(y)):
+            raise DatasetError(f"record {self.records[i].get('id')!r}: 'y' must be 7 finite numbers")
+        return y
+
+    def flipped(self, i: int) -> bool:
+        """Whether item ``i`` is mirrored in the current epoch."""
+        if not self.flip:
+            return False
+        return bool(np.random.default_rng([self.seed, self.epoch, i]).random() < 0.5)
+
+    def __getitem__(self, i: int):
+        x = torch.from_numpy(self.image_srgb8(i).transpose(2, 0, 1).astype(np.float32) / 255.0)
+        y = self.target(i)
+        if self.flipped(i):
+            x, y = flip_image(x), flip_y(y)
+        return x, torch.from_numpy(y.astype(np.float32)), i
+
+    def truth(self) -> dict:
+        """Ground truth of every item in degrees: ``pan_rel_deg``, ``tilt_deg``, ``rgb``,
+        ``camera_tilt_deg`` (arrays of shape (N,) or (N, 3))."""
+        r = self.records
+        return {"id": [x["id"] for x in r],
+                "pan_rel_deg": np.array([x["pan_rel_deg"] for x in r], dtype=np.float64),
+                "tilt_deg": np.array([x["light"]["tilt_deg"] for x in r], dtype=np.float64),
+                "rgb": np.array([x["light"]["rgb"] for x in r], dtype=np.float64).reshape(-1, 3),
+                "camera_tilt_deg": np.array([x["camera"]["tilt_deg"] for x in r], dtype=np.float64)}

@@ -1,0 +1,89 @@
+"""Model weights on disk: safetensors (no pickle) with JSON metadata in its header.
+
+A model file ``*.safetensors`` holds the network's state dict (float32 weights and
+batch-norm buffers) and string metadata: ``format`` (= :data:`MODEL_FORMAT`),
+``arch`` (= :data:`relight.net.model.ARCH_NAME`), ``config`` (the
+:class:`~relight.net.model.NetConfig` as JSON) and ``info`` (free JSON: training
+settings, data, epoch). Anything else -- a missing file, a different format, wrong
+tensor names or shapes -- raises :class:`ModelFileError` with a one-line reason.
+"""
+from __future__ import annotations
+
+import json
+import os
+
+import torch
+
+from relight.net.model import ARCH_NAME, LightNet, NetConfig
+
+MODEL_FORMAT = "relight.model/v1"
+MODELS_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "models")
+SHIPPED_MODEL = os.path.join(MODELS_DIR, "sid2_small.safetensors")
+
+
+class ModelFileError(ValueError):
+    """A model file is missing, unreadable or not a relight model (one-line reason)."""
+
+
+def save_model(path: str | os.PathLike, model: LightNet, info: dict | None = None) -> None:
+    """Write ``model`` (weights + config + ``info``) to ``path`` atomically."""
+    from safetensors.torch import save_file
+    path = os.fspath(path)
+    state = {k: v.detach().cpu().contiguous() for k, v in model.state_dict().items()}
+    meta = {"format": MODEL_FORMAT, "arch": ARCH_NAME,
+            "config": json.dumps(model.config.to_dict()), "info": json.dumps(info or {})}
+    tmp = f"{path}.tmp{os.getpid()}"
+    save_file(state, tmp, metadata=meta)
+    os.replace(tmp, path)
+
+
+def read_model_file(path: str | os.PathLike) -> tuple[NetConfig, dict, dict]:
+    """``(config, state_dict, info)`` of a model file; raises :class:`ModelFileError`."""
+    from safetensors import SafetensorError, safe_open
+    path = os.fspath(path)
+    if os.path.isdir(path):
+        candidate = os.path.join(path, "best.safetensors")
+        if not os.path.isfile(candidate):
+            raise ModelFileError(f"{path} is a folder without best.safetensors (give a .safetensors model file)")
+        path = candidate
+    if not os.path.isfile(path):
+        raise ModelFileError(f"model file not found: {path}")
+    try:
+        with safe_open(path, framework="pt") as f:
+            meta = f.metadata() or {}
+            state = {k: f.get_tensor(k) for k in f.keys()}
+    except (SafetensorError, OSError, ValueError, RuntimeError) as exc:
+        text = str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__
+        raise ModelFileError(f"{path}: not a readable safetensors model ({text})") from None
+    if meta.get("format") != MODEL_FORMAT:
+        raise ModelFileError(f"{path}: expected a {MODEL_FORMAT!r} model, got format {meta.get('format')!r}")
+    if meta.get("arch") != ARCH_NAME:
+        raise ModelFileError(f"{path}: unsupported architecture {meta.get('arch')!r} (expected {ARCH_NAME!r})")
+    try:
+        config = NetConfig.from_dict(json.loads(meta.get("config", "")))
+        info = json.loads(meta.get("info", "{}"))
+    except (json.JSONDecodeError, TypeError, ValueError) as exc:
+        raise ModelFileError(f"{path}: bad model metadata ({str(exc).splitlines()[0][:120]})") from None
+    return config, state, info
+
+
+def load_model_file(path: str | os.PathLike) -> LightNet:
+    """Build the network of a model file, weights loaded, in eval mode."""
+    config, state, info = read_model_file(path)
+    model = LightNet(config)
+    expected = model.state_dict()
+    missing = sorted(set(expected) - set(state))
+    unexpected = sorted(set(state) - set(expected))
+    if missing or unexpected:
+        what = f"missing {missing[0]!r}" if missing else f"unexpected {unexpected[0]!r}"
+        raise ModelFileError(f"{os.fspath(path)}: weights do not match the network ({what}, "
+                             f"{len(missing)} missing, {len(unexpected)} unexpected)")
+    for k, v in state.items():
+        if v.shape != expected[k].shape:
+            raise ModelFileError(f"{os.fspath(path)}: tensor {k!r} has shape {tuple(v.shape)}, "
+                                 f"expected {tuple(expected[k].shape)}")
+        if v.is_floating_point() and not torch.isfinite(v).all():
+            raise ModelFileError(f"{os.fspath(path)}: tensor {k!r} holds NaN or inf")
+    model.load_state_dict(state)
+    model.info = info
+    return model.eval()

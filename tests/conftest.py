@@ -1,0 +1,39 @@
+"""Shared fixtures: the rendering backend once per session and a tiny known scene."""
+from __future__ import annotations
+
+import os
+import sys
+
+import pytest
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+if REPO not in sys.path:
+    sys.path.insert(0, REPO)
+
+
+@pytest.fixture(scope="session")
+def mi():
+    from relight import backend
+    return backend.init()
+
+
+def plain_texture(grey: float = 0.5) -> dict:
+    """A uniform texture (a checker whose two colours are equal)."""
+    return {"kind": "checker", "seed": 0, "cells": 2, "angle": 0.0, "colors": [[grey] * 3, [grey] * 3]}
+
+
+def sphere_scene(pan_rel_deg=90.0, tilt_deg=30.0, camera_tilt_deg=30.0, res=48, spp=16, seed=1,
+                 r_m=30.0, rgb=(1.0, 1.0, 1.0), roughness=0.0, n_walls=4):
+    """A grey unit-radius sphere (superquadric with e1 = e2 = 1) resting at the origin on a
+    uniform grey floor, lit by a point light; camera at pan 0."""
+    from relight.scene.spec import (CameraSpec, LightSpec, ObjectSpec, RenderSpec, RoomSpec,
+                                    SceneSpec)
+    sphere = ObjectSpec(family="superquadric", params={"e1": 1.0, "e2": 1.0, "axes": [1.0, 1.0, 1.0]},
+                        position_m=(0.0, 0.0), yaw_deg=0.0, size_m=1.5,
+                        reflectance=(0.6, 0.6, 0.6), roughness=roughness)
+    room = RoomSpec(n_walls=n_walls, inradius_m=110.0, height_m=80.0, rotation_deg=0.0,
+                    wall_textures=tuple(plain_texture() for _ in range(n_walls)),
+                    floor_texture=plain_texture(), texture_res=16)
+    return SceneSpec(id="sphere", camera=CameraSpec(tilt_deg=camera_tilt_deg, fov_deg=30.0),
+                     light=LightSpec(r_m=r_m, pan_deg=pan_rel_deg, tilt_deg=tilt_deg, rgb=rgb),
+                     room=room, objects=(sphere,), render=RenderSpec(res=res, spp=spp, max_depth=3, seed=seed))

@@ -1,0 +1,90 @@
+"""Conventions module: closed forms, round trips, wrap-around, camera and Mitsuba frames."""
+import math
+
+import numpy as np
+import pytest
+
+from relight import frames
+
+TOL = 1e-12
+
+
+def test_spherical_closed_forms():
+    # pan 0 / tilt 0 is +X; pan 90 is +Y (counter-clockwise from above); tilt 90 is +Z.
+    assert np.allclose(frames.spherical_to_cartesian(2.0, 0, 0), [2, 0, 0], atol=TOL)
+    assert np.allclose(frames.spherical_to_cartesian(2.0, 90, 0), [0, 2, 0], atol=TOL)
+    assert np.allclose(frames.spherical_to_cartesian(2.0, 123, 90), [0, 0, 2], atol=TOL)
+    s = math.sqrt(0.5)
+    assert np.allclose(frames.direction(45, 45), [0.5, 0.5, s], atol=TOL)
+
+
+def test_spherical_round_trip():
+    rng = np.random.default_rng(0)
+    r, pan, tilt = rng.uniform(1, 50, 100), rng.uniform(0, 360, 100), rng.uniform(-89, 89, 100)
+    r2, pan2, tilt2 = frames.cartesian_to_spherical(frames.spherical_to_cartesian(r, pan, tilt))
+    assert np.allclose(r2, r) and np.allclose(tilt2, tilt)
+    assert np.allclose(frames.wrap180(pan2 - pan), 0, atol=1e-9)
+
+
+def test_wrap():
+    assert frames.wrap360(-1) == 359 and frames.wrap360(360) == 0 and frames.wrap360(725) == 5
+    assert frames.wrap180(181) == -179 and frames.wrap180(-180) == -180 and frames.wrap180(359 - 1) == -2
+    assert 0 <= frames.wrap360(-1e-20) < 360
+    # pan 359 vs 1 is 2 degrees apart
+    assert abs(frames.wrap180(359 - 1)) == pytest.approx(2.0)
+
+
+def test_pan_rel():
+    assert frames.pan_rel_deg(90, 0) == 90
+    assert frames.pan_rel_deg(10, 30) == 340
+
+
+def test_encode_decode_round_trip():
+    rng = np.random.default_rng(1)
+    pan, tilt = rng.uniform(0, 360, 50), rng.choice(np.arange(30, 91, 5), 50).astype(float)
+    tilt_c = rng.uniform(10, 70, 50)
+    rgb = rng.uniform(0.1, 1, (50, 3))
+    y = frames.encode_y(pan, tilt, rgb, tilt_c)
+    assert y.shape == (50, 7)
+    pan2, tilt2, rgb2 = frames.decode_y(y, tilt_c)
+    assert np.allclose(frames.wrap180(pan2 - pan), 0, atol=1e-9)
+    assert np.allclose(tilt2, tilt) and np.allclose(rgb2, rgb)
+    # decoding does not need unit sin/cos pairs (a network's raw output)
+    pan3, tilt3, _ = frames.decode_y(y * np.array([3, 3, 0.5, 0.5, 1, 1, 1]), tilt_c)
+    assert np.allclose(frames.wrap180(pan3 - pan), 0, atol=1e-9) and np.allclose(tilt3, tilt)
+
+
+def test_encode_closed_form():
+    # pan_c = 0, pan_l = 90: sin(-90) = -1, cos(-90) = 0; tilt_c 40, tilt_l 70: sin(-30) = -0.5
+    y = frames.encode_y(90.0, 70.0, [1, 0, 0], 40.0)
+    assert np.allclose(y, [-1, 0, -0.5, math.cos(math.radians(30)), 1, 0, 0], atol=TOL)
+    with pytest.raises(ValueError):
+        frames.decode_y([1, 2, 3], 40.0)
+
+
+def test_camera_basis_pan0_right_is_plus_y():
+    right, up, forward = frames.camera_basis(30.0)
+    assert np.allclose(right, [0, 1, 0], atol=TOL)        # conventions: right-hand side is +Y
+    assert np.allclose(forward, -frames.direction(0, 30), atol=TOL)
+    assert up[2] > 0 and abs(np.dot(up, forward)) < TOL
+    with pytest.raises(ValueError):
+        frames.camera_basis(90.0)
+
+
+def test_world_camera_round_trip():
+    v = np.random.default_rng(2).normal(size=(20, 3))
+    c = frames.world_to_camera(v, 25.0, 10.0)
+    assert np.allclose(frames.camera_to_world_vector(c, 25.0, 10.0), v)
+    # the camera position maps to +z (toward the camera), +Y to the image right for pan_c = 0
+    assert np.allclose(frames.world_to_camera(frames.direction(0, 25.0), 25.0), [0, 0, 1], atol=TOL)
+    assert np.allclose(frames.world_to_camera([0, 1, 0], 25.0), [1, 0, 0], atol=TOL)
+
+
+def test_mitsuba_sensor_matches_look_at(mi):
+    origin = frames.camera_position(35.0, 20.0)
+    ref = np.array(mi.ScalarTransform4f().look_at(origin=origin.tolist(), target=[0, 0, 0], up=[0, 0, 1]).matrix)
+    assert np.allclose(frames.mitsuba_sensor_to_world(35.0, 20.0), ref, atol=1e-5)
+
+
+def test_travel_direction_flips_sign():
+    assert np.allclose(frames.travel_direction([0, 0, 1]), [0, 0, -1])
