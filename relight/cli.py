@@ -17,6 +17,7 @@ import sys
 # Modules that contribute subcommands (each has add_commands(subparsers)).
 COMMAND_MODULES = [
     "relight.commands.data",
+    "relight.commands.demo",
     "relight.net.commands",
     "relight.verify.commands",
     "relight.inverse.commands",

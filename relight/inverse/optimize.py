@@ -76,9 +76,11 @@ class Level:
             raise InverseError(f"level: positive fd_step_deg, max_step_deg, tol_deg expected, got {self}")
 
 
+MAX_REJECTIONS = 4  # trial steps per LM iteration before the level gives up (1 render each)
+
 DEFAULT_LEVELS = (
     Level(res=32, spp=8, fd_step_deg=2.0, max_step_deg=15.0, max_iters=12, tol_deg=0.1),
-    Level(res=64, spp=16, fd_step_deg=0.5, max_step_deg=3.0, max_iters=8, tol_deg=0.02),
+    Level(res=64, spp=32, fd_step_deg=0.5, max_step_deg=3.0, max_iters=8, tol_deg=0.02),
 )
 
 
@@ -301,7 +303,7 @@ class _Run:
                 jac[:, j] = (plus - minus) / (2.0 * steps[j])
             jtj, grad = jac.T @ jac, jac.T @ res_vec
             accepted = False
-            while lam < 1e8:
+            for _ in range(MAX_REJECTIONS):
                 delta = -np.linalg.solve(jtj + lam * (np.diag(np.diag(jtj)) + 1e-12 * np.eye(n_par)), grad)
                 arc = float(np.hypot(delta[0], delta[1]))
                 if arc > level.max_step_deg:

@@ -1,0 +1,141 @@
+"""Prediction on any image with a trained model (the shipped one by default).
+
+Images of any size are brought to the network's input encoding exactly as at
+training time (:func:`relight.net.data.prepare_srgb8`): linear images (EXR, or
+arrays from a renderer) are first encoded to 8-bit sRGB with
+:func:`relight.render.to_srgb8` -- the way the dataset PNGs were written -- while
+PNG/JPEG files are taken as 8-bit sRGB already. The output 7-vector is decoded with
+the stated camera tilt (photographs: the paper assumes 45 degrees) and camera pan 0.
+"""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import torch
+
+from relight.net.data import prepare_srgb8
+from relight.net.evaluate import decode_outputs
+from relight.net.io import SHIPPED_MODEL, ModelFileError, load_model_file
+
+DEFAULT_CAMERA_TILT_DEG = 45.0  # the paper's assumption for photographs
+IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".exr")
+
+__all__ = ["load_model", "predict_arrays", "predict_files", "list_images", "ModelFileError",
+           "DEFAULT_CAMERA_TILT_DEG"]
+
+
+def load_model(path: str | os.PathLike | None = None):
+    """Load a model file (``None``: the shipped model) in eval mode.
+
+    Raises :class:`relight.net.io.ModelFileError` (one line) on a missing, corrupt or
+    foreign file.
+    """
+    if path is None:
+        if not os.path.isfile(SHIPPED_MODEL):
+            raise ModelFileError(f"no shipped model at {SHIPPED_MODEL}; give --model")
+        path = SHIPPED_MODEL
+    return load_model_file(path)
+
+
+def _predict_inputs(model, inputs: list[torch.Tensor], camera_tilt_deg, batch_size: int = 32) -> list[dict]:
+    tilts = np.asarray(camera_tilt_deg, dtype=np.float64).reshape(-1)
+    if tilts.size != len(inputs):
+        raise ValueError(f"expected one camera tilt per image ({len(inputs)}), got {tilts.size}")
+    if not np.all(np.isfinite(tilts)):
+        raise ValueError("camera tilts must be finite degrees")
+    model.eval()
+    ys = []
+    with torch.no_grad():
+        for s in range(0, len(inputs), batch_size):
+            ys.append(model(torch.stack(inputs[s:s + batch_size])).double().numpy())
+    if not ys:
+        return []
+    y = np.concatenate(ys)
+    pan, tilt, rgb = decode_outputs(y, tilts)
+    return [{"pan_deg": float(pan[i]), "tilt_deg": float(tilt[i]), "rgb": [float(v) for v in rgb[i]],
+             "y": [float(v) for v in y[i]]} for i in range(len(inputs))]
+
+
+def predict_arrays(model, images_linear: list[np.ndarray], camera_tilt_deg: list[float]) -> list[dict]:
+    """Predict light of linear images.
+
+    Args:
+        model: from :func:`load_model`.
+        images_linear: ``(H, W, 3)`` float arrays, linear RGB (any size; encoded with
+            ``to_srgb8`` then centre-cropped and resized like the training images).
+        camera_tilt_deg: one camera tilt (degrees) per image, used for decoding.
+
+    Returns:
+        One dict per image: ``pan_deg`` (light pan relative to the camera, [0, 360),
+        0 = front, 90 = camera's right), ``tilt_deg`` (light elevation), ``rgb``
+        (unit norm, linear) and ``y`` (the raw 7-vector).
+    """
+    from relight.render import to_srgb8
+    res = model.config.res
+    inputs = []
+    for k, img in enumerate(images_linear):
+        a = np.asarray(img)
+        if a.ndim != 3 or a.shape[2] < 3:
+            raise ValueError(f"image #{k}: expected (H, W, 3) linear RGB, got shape {a.shape}")
+        inputs.append(prepare_srgb8(to_srgb8(a[..., :3]), res))
+    return _predict_inputs(model, inputs, camera_tilt_deg)
+
+
+def read_input(path: str, res: int) -> tuple[torch.Tensor, str]:
+    """Network input of an image file and the encoding assumed for it.
+    Raises :class:`relight.render.ImageError` for unreadable files."""
+    from PIL import Image, UnidentifiedImageError
+
+    from relight.render import ImageError, read_exr, to_srgb8
+    if path.lower().endswith(".exr"):
+        return prepare_srgb8(to_srgb8(read_exr(path)), res), "linear (EXR) -> 8-bit sRGB"
+    try:
+        with Image.open(path) as im:
+            im.load()
+            srgb8 = np.asarray(im.convert("RGB"))
+    except FileNotFoundError:
+        raise ImageError(f"image not found: {path}") from None
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as exc:
+        raise ImageError(f"cannot read image {path}: {str(exc).splitlines()[0][:120]}") from None
+    return prepare_srgb8(srgb8, res), "8-bit sRGB (used as is)"
+
+
+def list_images(paths: list[str]) -> list[str]:
+    """Files named, plus the images (PNG/JPEG/EXR) directly inside named folders, sorted."""
+    from relight.render import ImageError
+    out = []
+    for p in paths:
+        if os.path.isdir(p):
+            found = sorted(os.path.join(p, n) for n in os.listdir(p) if n.lower().endswith(IMAGE_EXTENSIONS))
+            if not found:
+                raise ImageError(f"no PNG/JPEG/EXR images in folder {p}")
+            out += found
+        elif os.path.exists(p):
+            out.append(p)
+        else:
+            raise ImageError(f"image not found: {p}")
+    return out
+
+
+def image_ids(files: list[str]) -> list[str]:
+    """Ids from file names (the stem; the full name where two stems collide)."""
+    stems = [os.path.splitext(os.path.basename(f))[0] or os.path.basename(f) for f in files]
+    ids = [s if stems.count(s) == 1 else os.path.basename(f) for s, f in zip(stems, files)]
+    seen, out = {}, []
+    for i in ids:  # same file name in two folders: number them
+        seen[i] = seen.get(i, 0) + 1
+        out.append(i if seen[i] == 1 else f"{i}~{seen[i]}")
+    return out
+
+
+def predict_files(model, files: list[str], camera_tilt_deg: float = DEFAULT_CAMERA_TILT_DEG) -> list[dict]:
+    """Predictions for image files; each dict also has ``id``, ``file`` and ``assumed``
+    (how its pixels were interpreted)."""
+    inputs, assumed = [], []
+    for f in files:
+        x, how = read_input(f, model.config.res)
+        inputs.append(x)
+        assumed.append(how)
+    preds = _predict_inputs(model, inputs, [camera_tilt_deg] * len(files))
+    return [{"id": i, **p, "file": f, "assumed": a} for i, p, f, a in zip(image_ids(files), preds, files, assumed)]

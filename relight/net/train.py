@@ -1,0 +1,239 @@
+"""Training as in the paper: Adam (lr 2e-4), ReduceLROnPlateau (factor 0.1) on the
+validation loss, batch size 16, He-normal initialisation (in the model).
+
+A run folder holds:
+    settings.json      the run's final settings (repeat it with the same command)
+    checkpoint.pt      full state after the last finished epoch (model, optimiser,
+                       scheduler, epoch, history); tensors only, loaded with
+                       ``torch.load(weights_only=True)``
+    last.safetensors   weights after the last epoch; best.safetensors: lowest val loss
+    log.csv            one row per epoch (losses, val errors in degrees, lr, time)
+    curves.png         the curves of log.csv
+
+Resuming (``resume=True``) continues from checkpoint.pt to ``epochs``; the shuffling
+and flip augmentation depend only on (seed, epoch), so an interrupted and resumed run
+follows the same path as an uninterrupted one. A dataset still being generated may be
+used: the manifest is re-read at the start of each epoch (``grow``).
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import pickle
+import time
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+import torch
+
+from relight.dataset import DatasetError
+from relight.net.data import LightDataset
+from relight.net.evaluate import errors_from_y, run_model
+from relight.net.io import save_model
+from relight.net.loss import LossWeights, light_loss
+from relight.net.model import LightNet, NetConfig, count_parameters
+
+CHECKPOINT = "checkpoint.pt"
+SETTINGS = "settings.json"
+LOG = "log.csv"
+LOG_FIELDS = ["epoch", "lr", "n_train", "n_val", "train_loss", "train_pan", "train_tilt", "train_colour_rad",
+              "val_loss", "val_pan_deg", "val_tilt_deg", "val_direction_deg", "val_colour_deg",
+              "epoch_time_s", "train_img_per_s"]
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Settings of one training run (written to ``settings.json``).
+
+    Attributes:
+        data_dir: dataset folder (``relight generate`` output).
+        epochs: total number of epochs (a resumed run continues up to it).
+        batch_size, lr: the paper's 16 and 2e-4.
+        res: network input size in pixels.
+        seed: weights initialisation, shuffling and flip augmentation.
+        flip: horizontal-flip augmentation (labels mirrored, pan_rel -> 360 - pan_rel).
+        plateau_patience: epochs without val improvement before lr *= 0.1.
+        threads: torch CPU threads (1 is fastest on a busy 2-core machine).
+        workers: DataLoader worker processes (0: load in the main process, with cache).
+        grow: re-read the manifest each epoch (dataset still being generated).
+        train_split, val_split: manifest splits used; an empty val split falls back
+            to the train split (tiny datasets).
+        loss_weights: alpha_1..3 of the loss.
+        width: network base width (see NetConfig).
+    """
+    data_dir: str
+    epochs: int = 10
+    batch_size: int = 16
+    lr: float = 2e-4
+    res: int = 128
+    seed: int = 0
+    flip: bool = True
+    plateau_patience: int = 2
+    threads: int = 1
+    workers: int = 0
+    grow: bool = True
+    train_split: str = "train"
+    val_split: str = "val"
+    loss_weights: LossWeights = field(default_factory=LossWeights)
+    width: int = 32
+
+    def __post_init__(self):
+        for name in ("epochs", "batch_size", "res", "threads"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or v < 1:
+                raise DatasetError(f"{name} must be a positive integer, got {v!r}")
+        if self.workers < 0 or self.plateau_patience < 0:
+            raise DatasetError("workers and plateau_patience must be >= 0")
+        if not (isinstance(self.lr, float) and 0 < self.lr < 1):
+            raise DatasetError(f"lr must be in (0, 1), got {self.lr!r}")
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def _check_resume_compatible(saved: dict, cfg: TrainConfig) -> None:
+    for key in ("res", "batch_size", "seed", "width", "flip"):
+        if key in saved and saved[key] != getattr(cfg, key):
+            raise DatasetError(f"cannot resume: {key} was {saved[key]!r} in this run, now {getattr(cfg, key)!r}")
+
+
+def _epoch_order(n: int, seed: int, epoch: int) -> list[int]:
+    g = torch.Generator().manual_seed(seed * 1_000_003 + epoch)
+    return torch.randperm(n, generator=g).tolist()
+
+
+def _save_checkpoint(path: str, state: dict) -> None:
+    tmp = f"{path}.tmp{os.getpid()}"
+    torch.save(state, tmp)
+    os.replace(tmp, path)
+
+
+def _write_log(path: str, rows: list[dict]) -> None:
+    tmp = f"{path}.tmp{os.getpid()}"
+    with open(tmp, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=LOG_FIELDS)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: r.get(k, "") for k in LOG_FIELDS})
+    os.replace(tmp, path)
+
+
+def plot_curves(rows: list[dict], path: str) -> None:
+    """PNG of training/validation loss and validation errors (degrees) per epoch."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    ep = [r["epoch"] for r in rows]
+    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4))
+    a.plot(ep, [r["train_loss"] for r in rows], "o-", label="train")
+    a.plot(ep, [r["val_loss"] for r in rows], "o-", label="val")
+    a.set_yscale("log"), a.set_xlabel("epoch"), a.set_ylabel("loss"), a.legend(), a.grid(alpha=0.3)
+    for key, lab in (("val_direction_deg", "direction"), ("val_pan_deg", "pan"),
+                     ("val_tilt_deg", "tilt"), ("val_colour_deg", "colour")):
+        b.plot(ep, [r[key] for r in rows], "o-", label=lab)
+    b.set_xlabel("epoch"), b.set_ylabel("mean val error (deg)"), b.legend(), b.grid(alpha=0.3)
+    fig.tight_layout()
+    tmp = f"{path}.tmp{os.getpid()}.png"
+    fig.savefig(tmp, dpi=100)
+    plt.close(fig)
+    os.replace(tmp, path)
+
+
+def train(cfg: TrainConfig, out_dir: str | os.PathLike, resume: bool = False, progress: bool = True) -> dict:
+    """Train (or resume) a run in ``out_dir``; returns the last log row (dict)."""
+    from torch.utils.data import DataLoader
+    from tqdm import tqdm
+
+    out_dir = os.fspath(out_dir)
+    os.makedirs(out_dir, exist_ok=True)
+    ckpt_path = os.path.join(out_dir, CHECKPOINT)
+    if os.path.exists(ckpt_path) and not resume:
+        raise DatasetError(f"{out_dir} already holds a run; add --resume to continue it or use a new --out")
+    torch.set_num_threads(cfg.threads)
+    torch.manual_seed(cfg.seed)
+
+    train_set = LightDataset(cfg.data_dir, cfg.train_split, cfg.res, flip=cfg.flip, seed=cfg.seed)
+    val_set = LightDataset(cfg.data_dir, cfg.val_split, cfg.res)
+    if len(train_set) == 0:
+        raise DatasetError(f"{cfg.data_dir}: no records in split {cfg.train_split!r}")
+
+    model = LightNet(NetConfig(res=cfg.res, width=cfg.width))
+    optimiser = torch.optim.Adam(model.parameters(), lr=cfg.lr)
+    scheduler = torch.optim.lr_scheduler.ReduceLROnPlateau(optimiser, mode="min", factor=0.1,
+                                                           patience=cfg.plateau_patience)
+    start_epoch, rows, best = 0, [], math.inf
+    if resume and os.path.exists(ckpt_path):
+        try:
+            state = torch.load(ckpt_path, weights_only=True)
+        except (RuntimeError, OSError, EOFError, ValueError, KeyError, pickle.UnpicklingError) as exc:
+            raise DatasetError(f"{ckpt_path}: cannot read checkpoint ({str(exc).splitlines()[0][:100]})") from None
+        _check_resume_compatible(state["settings"], cfg)
+        model.load_state_dict(state["model"])
+        optimiser.load_state_dict(state["optimiser"])
+        scheduler.load_state_dict(state["scheduler"])
+        start_epoch, rows, best = int(state["epoch"]), list(state["history"]), float(state["best_val_loss"])
+        torch.set_rng_state(state["torch_rng"])
+    settings = cfg.to_dict() | {"out_dir": out_dir, "parameters": count_parameters(model)}
+    with open(os.path.join(out_dir, SETTINGS), "w") as f:
+        json.dump(settings, f, indent=1)
+    if start_epoch >= cfg.epochs:
+        if progress:
+            print(f"{out_dir}: already trained for {start_epoch} epochs (asked {cfg.epochs})")
+        return rows[-1] if rows else {}
+
+    for epoch in range(start_epoch, cfg.epochs):
+        if cfg.grow and epoch > start_epoch:
+            train_set.refresh(), val_set.refresh()
+        evaluation_set = val_set if len(val_set) else LightDataset(cfg.data_dir, cfg.train_split, cfg.res,
+                                                                   records=train_set.records)
+        train_set.epoch = epoch
+        loader = DataLoader(train_set, batch_size=cfg.batch_size, num_workers=cfg.workers,
+                            sampler=_epoch_order(len(train_set), cfg.seed, epoch), drop_last=False)
+        model.train()
+        sums, seen, t0 = {"total": 0.0, "pan": 0.0, "tilt": 0.0, "colour": 0.0}, 0, time.perf_counter()
+        bar = tqdm(loader, desc=f"epoch {epoch + 1}/{cfg.epochs}", disable=not progress, leave=False,
+                   dynamic_ncols=True)
+        for x, y, _ in bar:
+            parts = light_loss(model(x), y, cfg.loss_weights, parts=True)
+            optimiser.zero_grad(set_to_none=True)
+            parts["total"].backward()
+            optimiser.step()
+            for k in sums:
+                sums[k] += float(parts[k].detach()) * len(x)
+            seen += len(x)
+            bar.set_postfix(loss=f"{sums['total'] / seen:.4f}")
+        train_time = time.perf_counter() - t0
+        y_val = run_model(model, evaluation_set, cfg.batch_size * 4)
+        with torch.no_grad():
+            val_loss = float(light_loss(torch.from_numpy(y_val),
+                                        torch.from_numpy(np.stack([evaluation_set.target(i) for i in
+                                                                   range(len(evaluation_set))])).float(),
+                                        cfg.loss_weights))
+        errs = errors_from_y(y_val, evaluation_set.truth())
+        scheduler.step(val_loss)
+        row = {"epoch": epoch + 1, "lr": optimiser.param_groups[0]["lr"], "n_train": seen,
+               "n_val": len(evaluation_set), "train_loss": sums["total"] / seen, "train_pan": sums["pan"] / seen,
+               "train_tilt": sums["tilt"] / seen, "train_colour_rad": sums["colour"] / seen, "val_loss": val_loss,
+               **{f"val_{m}_deg": float(np.mean(e)) for m, e in errs.items()},
+               "epoch_time_s": time.perf_counter() - t0, "train_img_per_s": seen / train_time}
+        rows.append(row)
+        info = {"epoch": epoch + 1, "val_loss": val_loss, "data_dir": os.path.abspath(cfg.data_dir),
+                "n_train": seen, "settings": cfg.to_dict()}
+        save_model(os.path.join(out_dir, "last.safetensors"), model, info)
+        if val_loss < best:
+            best = val_loss
+            save_model(os.path.join(out_dir, "best.safetensors"), model, info)
+        _save_checkpoint(ckpt_path, {"model": model.state_dict(), "optimiser": optimiser.state_dict(),
+                                     "scheduler": scheduler.state_dict(), "epoch": epoch + 1,
+                                     "history": rows, "best_val_loss": best, "settings": cfg.to_dict(),
+                                     "torch_rng": torch.get_rng_state()})
+        _write_log(os.path.join(out_dir, LOG), rows)
+        plot_curves(rows, os.path.join(out_dir, "curves.png"))
+        if progress:
+            tqdm.write(f"epoch {epoch + 1}/{cfg.epochs}: loss {row['train_loss']:.4f} val {val_loss:.4f} | "
+                       f"val mean deg: direction {row['val_direction_deg']:.2f} pan {row['val_pan_deg']:.2f} "
+                       f"tilt {row['val_tilt_deg']:.2f} colour {row['val_colour_deg']:.2f} | "
+                       f"lr {row['lr']:.1e} | {seen} img, {row['train_img_per_s']:.1f} img/s")
+    return rows[-1]

@@ -1,0 +1,2 @@
+"""The verifier: re-render scenes under predicted lights (compare), image metrics,
+figures (paper Figures 3-5) and the report folder."""

@@ -1,0 +1,239 @@
+"""``relight compare`` and ``relight figure spheres|pole``: thin argument parsing over
+:mod:`relight.verify.compare`, :mod:`relight.verify.report` and :mod:`relight.verify.figures`."""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import shutil
+import sys
+import tempfile
+
+import numpy as np
+
+DEFAULT_PHOTO_CAMERA_TILT_DEG = 45.0   # the paper's assumption for photographs
+
+
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {v}")
+    return v
+
+
+def _camera_tilt(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of degrees, got {text!r}") from None
+    if not (math.isfinite(v) and -90.0 < v < 90.0):
+        raise argparse.ArgumentTypeError(f"camera tilt must be in (-90, 90) degrees, got {text!r}")
+    return v
+
+
+def add_commands(sub) -> None:
+    c = sub.add_parser("compare", help="re-render each scene under its predicted light; errors + figures",
+                       description="Verify a relight.predictions/v1 file: re-render every image's "
+                                   "scene under the predicted light with Mitsuba and write a report "
+                                   "(panels, Figure 3, metrics.csv, summary.json, tables, index.html).")
+    c.add_argument("predictions", help="predictions file (relight.predictions/v1)")
+    c.add_argument("--data", default=None, help="dataset folder (default: the file's 'dataset' field)")
+    c.add_argument("--out", required=True, help="report folder (written atomically)")
+    c.add_argument("--skip-bad", action="store_true", help="skip bad entries and list them in the report")
+    c.add_argument("--limit", type=_positive_int, default=None, help="compare only the first N predictions")
+    c.add_argument("--max-columns", type=_positive_int, default=8, help="columns of figure3 (default 8)")
+    c.add_argument("--quiet", action="store_true", help="no progress bar")
+    c.set_defaults(func=cmd_compare)
+
+    f = sub.add_parser("figure", help="figures of predictions: spheres (paper Fig. 4), pole (Fig. 5)")
+    fsub = f.add_subparsers(dest="figure", metavar="FIGURE")
+    fsub.required = True
+    s = fsub.add_parser("spheres", help="diffuse + specular spheres under true and predicted light",
+                        description="Per image, a diffuse and a specular sphere rendered under the "
+                                    "ground-truth light (dataset record, or gt_pan_deg/gt_tilt_deg/"
+                                    "gt_rgb fields of the entry) and under the predicted light.")
+    s.add_argument("predictions", help="predictions file")
+    s.add_argument("--data", default=None, help="dataset folder (default: the file's 'dataset' field, if any)")
+    s.add_argument("--out", required=True, help="output folder (spheres_NNN.png/.pdf, 8 images a page)")
+    s.add_argument("--camera-tilt", type=_camera_tilt, default=DEFAULT_PHOTO_CAMERA_TILT_DEG,
+                   help="camera tilt in degrees for entries without a dataset record (default 45)")
+    s.add_argument("--res", type=_positive_int, default=96, help="sphere render size in pixels (default 96)")
+    s.add_argument("--spp", type=_positive_int, default=32, help="samples per pixel (default 32)")
+    s.add_argument("--limit", type=_positive_int, default=None, help="only the first N predictions")
+    s.set_defaults(func=cmd_spheres)
+
+    p = fsub.add_parser("pole", help="draw a rendered pole and its shadow under the predicted light",
+                        description="Render a small pole and its cast shadow under the predicted "
+                                    "light into IMAGE's top-left corner (paper Figure 5).")
+    p.add_argument("image", help="image (PNG/JPEG taken as sRGB, EXR linear)")
+    p.add_argument("predictions", help="predictions file")
+    p.add_argument("--camera-tilt", type=_camera_tilt, default=DEFAULT_PHOTO_CAMERA_TILT_DEG,
+                   help="assumed camera tilt in degrees (default 45, as in the paper)")
+    p.add_argument("--id", default=None, help="entry to use (default: the only entry, or the image's file stem)")
+    p.add_argument("--out", required=True, help="output PNG")
+    p.set_defaults(func=cmd_pole)
+
+
+def cmd_compare(args) -> int:
+    from relight.verify.compare import compare_predictions
+    from relight.verify.report import check_out, write_report
+    out = os.path.abspath(args.out)
+    check_out(out)
+    comparison = compare_predictions(args.predictions, data_dir=args.data, limit=args.limit,
+                                     skip_bad=args.skip_bad, progress=not args.quiet)
+    settings = {"command": "compare", "predictions": os.path.abspath(args.predictions),
+                "data": comparison.dataset_dir, "out": out, "skip_bad": bool(args.skip_bad),
+                "limit": args.limit, "max_columns": args.max_columns,
+                "argv": ["relight", "compare", args.predictions] + (["--data", args.data] if args.data else [])
+                + ["--out", args.out] + (["--skip-bad"] if args.skip_bad else [])
+                + (["--limit", str(args.limit)] if args.limit else [])}
+    summary = write_report(comparison, out, settings, max_columns=args.max_columns,
+                           progress=not args.quiet)
+    d = summary["light_errors_deg"]
+    line = f"{out}: {summary['n']} images compared"
+    if summary["n"]:
+        line += (f", direction error mean {d['direction']['mean']:.2f} deg "
+                 f"(median {d['direction']['median']:.2f}), colour mean {d['colour']['mean']:.2f} deg")
+    if summary["n_bad"]:
+        line += f"; {summary['n_bad']} bad entries skipped (listed in the report)"
+    print(line)
+    print(f"open {os.path.join(out, 'index.html')}")
+    return 0
+
+
+def _gt_from_entry(pred) -> tuple[float, float, np.ndarray] | None:
+    """Ground truth from an entry's gt_pan_deg / gt_tilt_deg / gt_rgb fields, if present."""
+    from relight.predictions import PredictionsError
+    keys = ("gt_pan_deg", "gt_tilt_deg", "gt_rgb")
+    present = [k for k in keys if k in pred.extra]
+    if not present:
+        return None
+    try:
+        pan, tilt = float(pred.extra["gt_pan_deg"]), float(pred.extra["gt_tilt_deg"])
+        rgb = np.asarray(pred.extra["gt_rgb"], dtype=np.float64)
+        ok = math.isfinite(pan) and math.isfinite(tilt) and rgb.shape == (3,) \
+            and np.isfinite(rgb).all() and (rgb >= 0).all() and rgb.max() > 0
+    except (KeyError, TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise PredictionsError(f"entry {pred.id!r}: gt_pan_deg, gt_tilt_deg and gt_rgb must all be "
+                               "given as finite numbers (rgb non-negative, non-zero)")
+    return pan, tilt, rgb / np.linalg.norm(rgb)
+
+
+def sphere_rows(predictions_path: str, data_dir: str | None, camera_tilt_deg: float,
+                res: int, spp: int, limit: int | None = None) -> list[dict]:
+    """Rows for :func:`relight.verify.figures.save_spheres_figure` (renders the spheres)."""
+    from relight import metrics
+    from relight.dataset import read_manifest, safe_join
+    from relight.predictions import PredictionsError, read_predictions
+    from relight.render import read_exr, read_image
+    from relight.verify import spheres
+    from relight.verify.compare import _gt_light, resolve_dataset_dir
+    pfile = read_predictions(predictions_path)
+    records, dataset_dir = {}, None
+    if data_dir or pfile.dataset:
+        dataset_dir = resolve_dataset_dir(predictions_path, data_dir, pfile.dataset)
+        records = {r.get("id"): r for r in read_manifest(dataset_dir)}
+    rows = []
+    for pred in pfile.predictions[:limit]:
+        record = records.get(pred.id)
+        image = None
+        if record is not None:
+            cam_tilt = float(record["camera"]["tilt_deg"])
+            g = _gt_light(record)
+            gt = (g.pan_rel_deg, g.tilt_deg, np.asarray(g.rgb))
+            image = read_exr(safe_join(dataset_dir, record["exr"]))
+        else:
+            if dataset_dir is not None and "gt_pan_deg" not in pred.extra:
+                raise PredictionsError(f"{predictions_path}: entry {pred.id!r}: id not in the manifest "
+                                       f"of {dataset_dir} and no gt_* fields")
+            cam_tilt = float(pred.extra.get("camera_tilt_deg", camera_tilt_deg))
+            gt = _gt_from_entry(pred)
+            if isinstance(pred.extra.get("image"), str):
+                base = os.path.dirname(os.path.abspath(predictions_path))
+                image = read_image(os.path.join(base, pred.extra["image"]))[0]
+        pan, tilt, rgb = pred.resolve(cam_tilt)
+        pred_sph = np.concatenate(spheres.sphere_pair(pan, tilt, rgb, cam_tilt, res, spp), axis=1)
+        gt_sph, errors = None, None
+        if gt is not None:
+            gt_sph = np.concatenate(spheres.sphere_pair(*gt, cam_tilt, res, spp), axis=1)
+            errors = {k: float(v) for k, v in metrics.light_errors(pan, tilt, rgb, *gt).items()}
+        rows.append({"id": pred.id, "image": image, "gt_spheres": gt_sph, "pred_spheres": pred_sph,
+                     "errors": errors})
+    return rows
+
+
+def cmd_spheres(args) -> int:
+    import json
+
+    from relight import backend
+    from relight.verify import figures
+    backend.init()
+    out = os.path.abspath(args.out)
+    if os.path.lexists(out) and not os.path.isdir(out):
+        raise FileExistsError_(f"--out {out} exists and is not a folder")
+    rows = sphere_rows(args.predictions, args.data, args.camera_tilt, args.res, args.spp, args.limit)
+    parent = os.path.dirname(out)
+    os.makedirs(parent, exist_ok=True)
+    tmp = tempfile.mkdtemp(prefix=f".{os.path.basename(out)}.tmp", dir=parent)
+    try:
+        for page, start in enumerate(range(0, len(rows), figures.MAX_COLUMNS)):
+            chunk = rows[start:start + figures.MAX_COLUMNS]
+            for ext in ("png", "pdf"):
+                figures.save_spheres_figure(chunk, os.path.join(tmp, f"spheres_{page:03d}.{ext}"))
+        with open(os.path.join(tmp, "settings.json"), "w") as f:
+            json.dump({"command": "figure spheres", "predictions": os.path.abspath(args.predictions),
+                       "data": args.data, "camera_tilt_deg": args.camera_tilt, "res": args.res,
+                       "spp": args.spp, "limit": args.limit,
+                       "errors_deg": {r["id"]: r["errors"] for r in rows}}, f, indent=1)
+        if os.path.isdir(out):
+            shutil.rmtree(out)
+        os.replace(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    print(f"{out}: spheres for {len(rows)} images")
+    return 0
+
+
+def FileExistsError_(msg):  # noqa: N802 - a user error the CLI reports in one line
+    from relight.predictions import PredictionsError
+    return PredictionsError(msg)
+
+
+def pick_entry(predictions, image_path: str, wanted_id: str | None):
+    """The entry to draw: ``wanted_id``, the only entry, or the one named like the image."""
+    from relight.predictions import PredictionsError
+    if wanted_id is not None:
+        found = [p for p in predictions if p.id == wanted_id]
+        if not found:
+            raise PredictionsError(f"no entry with id {wanted_id!r}")
+        return found[0]
+    if len(predictions) == 1:
+        return predictions[0]
+    stem = os.path.splitext(os.path.basename(image_path))[0]
+    found = [p for p in predictions if p.id == stem]
+    if not found:
+        raise PredictionsError(f"{len(predictions)} entries and none has id {stem!r}; choose one with --id")
+    return found[0]
+
+
+def cmd_pole(args) -> int:
+    from relight import backend
+    from relight.predictions import read_predictions
+    from relight.render import ImageError, read_image, write_png
+    from relight.verify.figures import pole_overlay
+    if not args.out.lower().endswith(".png"):
+        raise ImageError(f"--out must end in .png, got {args.out!r}")
+    image, _ = read_image(args.image)
+    pred = pick_entry(read_predictions(args.predictions).predictions, args.image, args.id)
+    pan, tilt, rgb = pred.resolve(args.camera_tilt)
+    backend.init()
+    write_png(args.out, pole_overlay(image, pan, tilt, rgb, args.camera_tilt))
+    print(f"{args.out}: pole under light pan_rel {pan:.1f} tilt {tilt:.1f} deg "
+          f"(camera tilt {args.camera_tilt:g} deg)", file=sys.stdout)
+    return 0

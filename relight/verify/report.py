@@ -1,0 +1,206 @@
+"""Write a compare report folder, all at once or not at all.
+
+Layout of ``REPORT/``::
+
+    index.html        everything in one page (open in a browser)
+    figure3.png/.pdf  the paper's Figure 3 layout
+    panels/ID.png     (a) | (b) | (c) with a colour bar, one per image
+    metrics.csv       one row per image: light errors (deg), image errors, noise floor
+    summary.json      statistics, the paper's tables, bad entries, notes
+    tables.md         the paper's Tables 1-3 (mean and median) + image errors
+    settings.json     the command's settings (to repeat the run)
+
+Everything is written into a temporary folder beside ``REPORT`` and renamed at the
+end, so an error leaves no partial report. An existing ``REPORT`` is replaced only if
+it is itself a compare report (has a ``settings.json`` of this format).
+"""
+from __future__ import annotations
+
+import csv
+import html
+import json
+import math
+import os
+import shutil
+import tempfile
+
+import numpy as np
+
+from relight import metrics
+from relight.verify import figures
+from relight.verify.compare import IMAGE_METRICS, STRENGTH_NOTE, CompareError, Comparison
+
+REPORT_FORMAT = "relight.compare-report/v1"
+
+
+def _finite_or_none(x):
+    return float(x) if isinstance(x, (int, float, np.floating)) and math.isfinite(x) else None
+
+
+def _clean(obj):
+    """JSON-safe copy: inf/NaN become null (JSON has no such literals)."""
+    if isinstance(obj, dict):
+        return {str(k): _clean(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_clean(v) for v in obj]
+    if isinstance(obj, (float, np.floating)):
+        return _finite_or_none(obj)
+    if isinstance(obj, np.integer):
+        return int(obj)
+    return obj
+
+
+def _image_stats(values) -> dict:
+    v = np.asarray(values, dtype=np.float64)
+    v = v[np.isfinite(v)]  # PSNR of identical images is +inf
+    return {"n_finite": int(v.size), "mean": float(v.mean()) if v.size else None,
+            "median": float(np.median(v)) if v.size else None}
+
+
+def summarise(comparison: Comparison) -> dict:
+    """Statistics of a comparison (degrees for light errors, linear units for images)."""
+    items = comparison.items
+    errors = {m: np.array([it.light_errors_deg[m] for it in items]) for m in metrics.METRICS}
+    tables = metrics.error_tables(errors, [it.gt.tilt_deg for it in items],
+                                  [it.gt.pan_rel_deg for it in items])
+    image = {m: _image_stats([it.image_errors[m] for it in items]) for m in IMAGE_METRICS}
+    noise = {m: _image_stats([it.noise_floor[m] for it in items]) for m in IMAGE_METRICS}
+    return {"format": REPORT_FORMAT, "n": len(items), "n_bad": len(comparison.bad),
+            "bad": [{"entry": e, "reason": r} for e, r in comparison.bad],
+            "dataset": comparison.dataset_dir, "predictions": comparison.predictions_path,
+            "light_errors_deg": {m: metrics.summary_stats(errors[m]) for m in metrics.METRICS},
+            "image_errors": image, "noise_floor": noise, "tables": tables,
+            "seconds": comparison.seconds, "render_seconds": comparison.render_seconds,
+            "seconds_per_image": comparison.seconds / len(items) if items else None,
+            "notes": [STRENGTH_NOTE,
+                      "Image errors compare (a) the dataset's linear EXR with (b) the re-render in "
+                      "linear space (PSNR peak 1.0, SSIM data range 1.0); the noise floor compares "
+                      "(a) with a render under the true light and another seed."]}
+
+
+def image_table(summary: dict) -> str:
+    """Markdown table of image errors beside their noise floor (mean and median)."""
+    lines = ["**Image errors, (a) original vs (b) re-render, linear; noise floor: two renders "
+             "of the true light**", "", "| Stat | RMSE | RMSE floor | PSNR (dB) | PSNR floor | SSIM | SSIM floor |",
+             "|---|---:|---:|---:|---:|---:|---:|"]
+    for stat in ("mean", "median"):
+        cells = []
+        for m in IMAGE_METRICS:
+            for group in ("image_errors", "noise_floor"):
+                v = summary[group][m][stat]
+                cells.append("n/a" if v is None else f"{v:.4f}" if m != "psnr_db" else f"{v:.2f}")
+        lines.append(f"| {stat.capitalize()} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _write_json(path: str, data) -> None:
+    with open(path, "w") as f:
+        json.dump(_clean(data), f, indent=1, allow_nan=False)
+
+
+def _write_csv(path: str, rows: list[dict]) -> None:
+    with open(path, "w", newline="") as f:
+        if not rows:
+            return
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        for row in rows:
+            writer.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
+
+
+def _index_html(summary: dict, tables_md: str, rows: list[dict], panel_names: list[str]) -> str:
+    esc = html.escape
+    out = ["<!doctype html><html><head><meta charset='utf-8'><title>relight compare</title>",
+           "<style>body{font-family:sans-serif;margin:2em;max-width:1200px}"
+           "table{border-collapse:collapse;font-size:12px}td,th{border:1px solid #ccc;padding:2px 6px}"
+           "img.panel{width:100%;max-width:900px}</style></head><body>",
+           "<h1>relight compare</h1>",
+           f"<p>Predictions: <code>{esc(str(summary['predictions']))}</code><br>Dataset: "
+           f"<code>{esc(str(summary['dataset']))}</code><br>{summary['n']} images compared, "
+           f"{summary['n_bad']} bad entries.</p>",
+           "".join(f"<p><i>{esc(n)}</i></p>" for n in summary["notes"]),
+           "<h2>Figure 3</h2><p>Rows: (a) original, (b) re-rendered under the predicted light, "
+           "(c) luminance difference; columns from smallest to largest direction error "
+           "(<a href='figure3.pdf'>PDF</a>).</p><img src='figure3.png' style='max-width:100%'>",
+           f"<h2>Tables</h2><pre>{esc(tables_md)}</pre>"]
+    if summary["bad"]:
+        out.append("<h2>Bad entries (skipped)</h2><ul>")
+        out += [f"<li><b>{esc(b['entry'])}</b>: {esc(b['reason'])}</li>" for b in summary["bad"]]
+        out.append("</ul>")
+    if rows:
+        keys = ["id", "direction_error_deg", "colour_error_deg", "pan_error_deg", "tilt_error_deg",
+                "rmse", "noise_rmse", "ssim", "noise_ssim"]
+        out.append("<h2>Per image</h2><p><a href='metrics.csv'>metrics.csv</a></p><table><tr>"
+                   + "".join(f"<th>{k}</th>" for k in keys) + "</tr>")
+        for row, name in zip(rows, panel_names):
+            cells = [f"<a href='#{esc(row['id'])}'>{esc(row['id'])}</a>"]
+            cells += [f"{row[k]:.4g}" for k in keys[1:]]
+            out.append("<tr>" + "".join(f"<td>{c}</td>" for c in cells) + "</tr>")
+        out.append("</table>")
+        for row, name in zip(rows, panel_names):
+            out.append(f"<h3 id='{esc(row['id'])}'>{esc(row['id'])}</h3>"
+                       f"<img class='panel' src='panels/{esc(name)}' loading='lazy'>")
+    out.append("</body></html>")
+    return "\n".join(out)
+
+
+def _is_report(path: str) -> bool:
+    try:
+        with open(os.path.join(path, "settings.json")) as f:
+            return json.load(f).get("format") == REPORT_FORMAT
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+def check_out(out_dir: str) -> None:
+    """Refuse an output path that exists and is not a compare report (before any work)."""
+    if os.path.lexists(out_dir) and not _is_report(out_dir):
+        raise CompareError(f"{out_dir} exists and is not a relight compare report; "
+                           "choose another --out")
+
+
+def write_report(comparison: Comparison, out_dir: str | os.PathLike, settings: dict,
+                 max_columns: int = figures.MAX_COLUMNS, progress: bool = False) -> dict:
+    """Write the report folder atomically (temporary folder, then rename); returns the summary."""
+    from tqdm import tqdm
+    out_dir = os.path.abspath(os.fspath(out_dir))
+    check_out(out_dir)
+    parent = os.path.dirname(out_dir)
+    os.makedirs(parent, exist_ok=True)
+    tmp = tempfile.mkdtemp(prefix=f".{os.path.basename(out_dir)}.tmp", dir=parent)
+    try:
+        items = comparison.items
+        summary = summarise(comparison)
+        rows = [it.row() for it in items]
+        os.makedirs(os.path.join(tmp, "panels"))
+        names = []
+        for it in tqdm(items, desc="panels", unit="img", disable=not progress):
+            names.append(f"{it.id}.png")
+            figures.save_panel(it, os.path.join(tmp, "panels", names[-1]))
+        if items:
+            cols = figures.save_figure3(items, [os.path.join(tmp, "figure3.png"),
+                                                os.path.join(tmp, "figure3.pdf")], max_columns)
+            summary["figure3_ids"] = [items[i].id for i in cols]
+        tables_md = (metrics.format_tables(summary["tables"]) + "\n" + image_table(summary)
+                     + "\n" + STRENGTH_NOTE + "\n") if items else "No image was compared.\n"
+        if comparison.bad:
+            tables_md += "\n**Bad entries (skipped)**\n\n" + "".join(
+                f"- {e}: {r}\n" for e, r in comparison.bad)
+        with open(os.path.join(tmp, "tables.md"), "w") as f:
+            f.write(tables_md)
+        _write_csv(os.path.join(tmp, "metrics.csv"), rows)
+        _write_json(os.path.join(tmp, "summary.json"), summary)
+        _write_json(os.path.join(tmp, "settings.json"), {"format": REPORT_FORMAT, **settings})
+        with open(os.path.join(tmp, "index.html"), "w") as f:
+            f.write(_index_html(_clean(summary), tables_md, rows, names))
+        if os.path.lexists(out_dir):  # an older report: swap it out, then delete it
+            old = tempfile.mkdtemp(prefix=f".{os.path.basename(out_dir)}.old", dir=parent)
+            os.replace(out_dir, os.path.join(old, "r"))
+            os.replace(tmp, out_dir)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(tmp, out_dir)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return summary
