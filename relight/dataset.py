@@ -21,7 +21,7 @@ import json
 import multiprocessing as mp
 import os
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -45,7 +45,6 @@ class GenerateStats:
     skipped: int = 0
     total_s: float = 0.0
     render_s: float = 0.0
-    per_image_s: list = field(default_factory=list)
 
     @property
     def images_per_s(self) -> float:
@@ -138,28 +137,63 @@ def _write_card(out: str, seed: int, cfg: GeneratorConfig, count: int) -> None:
     os.replace(tmp, card_path)
 
 
-def _render_and_write(out: str, cfg: GeneratorConfig, seed: int, index: int, builder) -> tuple[dict, float]:
-    """Sample, render and write one image; returns its record and render seconds."""
-    from relight.render import write_exr, write_png
+def _prepare(cfg: GeneratorConfig, seed: int, index: int):
+    """Stage 1 (helper thread): sample the spec and make its meshes and textures, which
+    land in the builder's caches so the render stage only uploads them."""
+    from relight.scene import build
     spec = sample_scene(cfg, seed, index)
-    template = builder.template_for(spec)
-    t0 = time.perf_counter()
-    image = template.render(spec.render.spp, spec.render.seed)
-    render_s = time.perf_counter() - t0
+    meshes = [build.object_mesh(o) for o in spec.objects]
+    for params in spec.room.wall_textures + (spec.room.floor_texture,):
+        build.texture(params, spec.room.texture_res)
+    return spec, meshes
+
+
+def _write(out: str, spec: SceneSpec, image: np.ndarray, split: str) -> dict:
+    """Stage 3 (writer thread): the scene file, EXR and PNG, each atomically; returns
+    the record to append once all three are in place."""
+    from relight.render import write_exr, write_png
     spec.save(os.path.join(out, "scenes", f"{spec.id}.json"))
     write_exr(os.path.join(out, "exr", f"{spec.id}.exr"), image)
     write_png(os.path.join(out, "images", f"{spec.id}.png"), image)
-    return record_for(spec, split_of(spec.id, cfg.split)), render_s
+    return record_for(spec, split)
+
+
+def _pipeline(out: str, cfg: GeneratorConfig, seed: int, indices: list[int], on_record) -> None:
+    """Generate ``indices`` in order with three overlapping stages: prepare the next
+    scene and write the previous image while Mitsuba renders the current one.
+    ``on_record(record, render_s)`` is called in index order from the writer thread,
+    only after the image's files are complete."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from relight.scene.build import SceneBuilder
+    builder = SceneBuilder()
+    with ThreadPoolExecutor(1, thread_name_prefix="prepare") as prep, \
+            ThreadPoolExecutor(1, thread_name_prefix="write") as writer:
+        pending_writes = []
+        next_prep = prep.submit(_prepare, cfg, seed, indices[0]) if indices else None
+        for k in range(len(indices)):
+            spec, meshes = next_prep.result()
+            if k + 1 < len(indices):
+                next_prep = prep.submit(_prepare, cfg, seed, indices[k + 1])
+            template = builder.template(spec, meshes)
+            t0 = time.perf_counter()
+            image = template.render(spec.render.spp, spec.render.seed)
+            render_s = time.perf_counter() - t0
+
+            def write_and_record(spec=spec, image=image, render_s=render_s):
+                on_record(_write(out, spec, image, split_of(spec.id, cfg.split)), render_s)
+            pending_writes.append(writer.submit(write_and_record))
+            while len(pending_writes) > 2 or (pending_writes and pending_writes[0].done()):
+                pending_writes.pop(0).result()  # re-raises a writer error here
+        for f in pending_writes:
+            f.result()
 
 
 def _worker(out, cfg, seed, indices, threads, queue):
     from relight import backend
-    from relight.scene.build import SceneBuilder
     try:
         backend.init(threads=threads)
-        builder = SceneBuilder()
-        for i in indices:
-            queue.put(("ok",) + _render_and_write(out, cfg, seed, i, builder))
+        _pipeline(out, cfg, seed, indices, lambda record, render_s: queue.put(("ok", record, render_s)))
     except BaseException as exc:  # report to the parent, which stops cleanly
         queue.put(("error", f"{type(exc).__name__}: {exc}", 0.0))
 
@@ -176,6 +210,7 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
         cfg: generator settings (default :class:`GeneratorConfig`).
         workers: processes rendering in parallel (each gets cores / workers threads).
         progress: show a progress bar (images/s) on stderr.
+        threads: Dr.Jit threads per process (default: cores / workers).
     """
     from tqdm import tqdm
     cfg = cfg or GeneratorConfig()
@@ -201,24 +236,18 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
     bar = tqdm(total=len(todo), unit="img", disable=not progress, desc="generate", smoothing=0.1)
     t_start = time.perf_counter()
     with open(manifest_path, "ab") as manifest:
-        def append(record):
+        def append(record, render_s):
             manifest.write((json.dumps(record) + "\n").encode())
             manifest.flush()
             os.fsync(manifest.fileno())
+            stats.written += 1
+            stats.render_s += render_s
+            bar.update(1)
 
         if workers == 1:
             from relight import backend
-            from relight.scene.build import SceneBuilder
             backend.init(threads=threads)
-            builder = SceneBuilder()
-            for i in todo:
-                t0 = time.perf_counter()
-                record, render_s = _render_and_write(out, cfg, seed, i, builder)
-                append(record)
-                stats.written += 1
-                stats.render_s += render_s
-                stats.per_image_s.append(time.perf_counter() - t0)
-                bar.update(1)
+            _pipeline(out, cfg, seed, todo, append)
         else:
             ctx = mp.get_context("spawn")
             queue = ctx.Queue()
@@ -231,10 +260,7 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
                     status, payload, render_s = queue.get()
                     if status == "error":
                         raise DatasetError(f"a worker failed: {payload}")
-                    append(payload)
-                    stats.written += 1
-                    stats.render_s += render_s
-                    bar.update(1)
+                    append(payload, render_s)
             finally:
                 for p in procs:
                     if p.is_alive():

@@ -73,7 +73,7 @@ def write_png(path: str | os.PathLike, linear: np.ndarray, exposure: float = 1.0
     from PIL import Image
     path = os.fspath(path)
     tmp = _tmp(path)
-    Image.fromarray(to_srgb8(linear, exposure)).save(tmp, format="PNG")
+    Image.fromarray(to_srgb8(linear, exposure)).save(tmp, format="PNG", compress_level=1)
     os.replace(tmp, path)
 
 

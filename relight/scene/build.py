@@ -237,6 +237,11 @@ class SceneTemplate:
         return np.array(mi.render(self.scene, spp=int(spp), seed=int(seed)), dtype=np.float32)
 
 
+def texture(params: dict, size: int) -> np.ndarray:
+    """Pixels ``(size, size, 3)`` float32 of a procedural texture (cached)."""
+    return _texture(_freeze(params), size)
+
+
 @functools.lru_cache(maxsize=128)
 def _texture(frozen_params, size: int) -> np.ndarray:
     return textures.make_texture(_thaw(frozen_params), size).astype(np.float32)
@@ -251,7 +256,10 @@ class SceneBuilder:
 
     def template_for(self, spec: SceneSpec) -> SceneTemplate:
         """The template holding ``spec`` (applied), loading one if this structure is new."""
-        meshes = [object_mesh(o) for o in spec.objects]
+        return self.template(spec, [object_mesh(o) for o in spec.objects])
+
+    def template(self, spec: SceneSpec, meshes: list[shapes.Mesh]) -> SceneTemplate:
+        """Like :meth:`template_for` with the object meshes already made."""
         if len(meshes) > N_OBJECT_SLOTS:
             raise SceneFileError(f"at most {N_OBJECT_SLOTS} objects per scene, got {len(meshes)}")
         key = template_key(spec, meshes)
