@@ -69,7 +69,6 @@ class ImageComparison:
     noise_floor: dict               # (a) vs (a'): same keys
     original: np.ndarray            # (a) the dataset's EXR
     rerender: np.ndarray            # (b) under the predicted light, same seed
-    noise_render: np.ndarray        # (a') ground-truth light, seed + NOISE_SEED_OFFSET
     res: int = 0
     spp: int = 0
     seed: int = 0
@@ -127,26 +126,42 @@ def _gt_light(record: dict) -> Light:
     return Light(float(record["pan_rel_deg"]), float(light["tilt_deg"]), tuple(float(c) for c in rgb))
 
 
-def compare_one(builder, dataset_dir: str, record: dict, prediction: Prediction,
-                noise_seed_offset: int = NOISE_SEED_OFFSET) -> tuple[ImageComparison, float]:
-    """Compare one prediction with its record; returns (result, render seconds).
+@dataclass(frozen=True)
+class Task:
+    """One validated prediction, ready to render (everything checked but the EXR pixels)."""
+    prediction: Prediction
+    spec: object          # SceneSpec of the image (ground-truth light)
+    exr_path: str
+    gt: Light
+    pred: Light
 
-    Raises SceneFileError / DatasetError / ImageError / PredictionsError on bad inputs
-    (the caller names the entry).
-    """
+
+def prepare(dataset_dir: str, record: dict, prediction: Prediction) -> Task:
+    """Check one prediction against its record without rendering (scene file, EXR path,
+    light fields, prediction decoding). Raises SceneFileError / DatasetError /
+    ImageError / PredictionsError; the caller names the entry."""
     spec = load_spec(dataset_dir, record)
-    original = read_exr(safe_join(dataset_dir, record["exr"]))
-    res, spp, seed = spec.render.res, spec.render.spp, spec.render.seed
-    if original.shape != (res, res, 3):
-        raise ImageError(f"{record['exr']}: shape {original.shape} does not match the scene's "
-                         f"{res}x{res}")
+    exr_path = safe_join(dataset_dir, record["exr"])
+    if not os.path.isfile(exr_path):
+        raise ImageError(f"original image not found: {record['exr']}")
     try:
         gt = _gt_light(record)
     except (KeyError, TypeError, ValueError) as exc:
         raise DatasetError(f"manifest record lacks a valid light ({exc})") from None
-    cam_tilt = float(spec.camera.tilt_deg)
-    pan, tilt, rgb = prediction.resolve(cam_tilt)
-    pred_spec = spec.with_light(pan, tilt, rgb)
+    pan, tilt, rgb = prediction.resolve(float(spec.camera.tilt_deg))
+    spec.with_light(pan, tilt, rgb)  # validates the light (finite values)
+    return Task(prediction, spec, exr_path, gt, Light(pan, tilt, tuple(float(c) for c in rgb)))
+
+
+def compare_one(builder, task: Task, noise_seed_offset: int = NOISE_SEED_OFFSET) -> tuple[ImageComparison, float]:
+    """Render and measure one prepared task; returns (result, render seconds)."""
+    spec, pred, gt = task.spec, task.pred, task.gt
+    original = read_exr(task.exr_path)
+    res, spp, seed = spec.render.res, spec.render.spp, spec.render.seed
+    if original.shape != (res, res, 3):
+        raise ImageError(f"{task.exr_path}: shape {original.shape} does not match the scene's "
+                         f"{res}x{res}")
+    pred_spec = spec.with_light(pred.pan_rel_deg, pred.tilt_deg, pred.rgb)
 
     t0 = time.perf_counter()
     template = builder.template_for(spec)               # ground-truth light applied
@@ -156,15 +171,17 @@ def compare_one(builder, dataset_dir: str, record: dict, prediction: Prediction,
     rerender = template.render(spp, seed)
     render_s = time.perf_counter() - t0
 
-    pred = Light(pan, tilt, tuple(float(c) for c in rgb))
     errs = metrics.light_errors(pred.pan_rel_deg, pred.tilt_deg, np.asarray(pred.rgb),
                                 gt.pan_rel_deg, gt.tilt_deg, np.asarray(gt.rgb))
     item = ImageComparison(
-        id=prediction.id, camera_tilt_deg=cam_tilt, gt=gt, pred=pred,
+        id=task.prediction.id, camera_tilt_deg=float(spec.camera.tilt_deg), gt=gt, pred=pred,
         light_errors_deg={k: float(v) for k, v in errs.items()},
         image_errors=image_errors(original, rerender), noise_floor=image_errors(original, noise),
-        original=original, rerender=rerender, noise_render=noise, res=res, spp=spp, seed=seed)
+        original=original, rerender=rerender, res=res, spp=spp, seed=seed)
     return item, render_s
+
+
+BAD_INPUT = (SceneFileError, DatasetError, ImageError, PredictionsError)
 
 
 def compare_predictions(predictions_path: str | os.PathLike, data_dir: str | None = None,
@@ -172,11 +189,15 @@ def compare_predictions(predictions_path: str | os.PathLike, data_dir: str | Non
                         builder=None, noise_seed_offset: int = NOISE_SEED_OFFSET) -> Comparison:
     """Re-render every prediction of a file and measure its errors.
 
+    Every entry is checked first (ids, scene files, EXR paths), so a bad one fails
+    before any rendering.
+
     Args:
         predictions_path: a ``relight.predictions/v1`` file.
         data_dir: dataset folder (default: the file's ``dataset`` field).
         limit: compare only the first N valid predictions (None: all).
         skip_bad: collect bad entries in ``Comparison.bad`` instead of raising.
+        progress: progress bar on stderr (shown only when stderr is a terminal).
         builder: a :class:`~relight.scene.build.SceneBuilder` to reuse (default: new).
     Raises:
         CompareError / PredictionsError naming the entry (unless ``skip_bad``).
@@ -192,7 +213,6 @@ def compare_predictions(predictions_path: str | os.PathLike, data_dir: str | Non
     dataset_dir = resolve_dataset_dir(predictions_path, data_dir, pfile.dataset)
     records = {r.get("id"): r for r in read_manifest(dataset_dir)}
     bad = list(pfile.bad)
-    todo = pfile.predictions[:limit] if limit else pfile.predictions
 
     def fail(pred: Prediction, reason: str):
         label = f"entry {pred.id!r}"
@@ -200,18 +220,28 @@ def compare_predictions(predictions_path: str | os.PathLike, data_dir: str | Non
             raise CompareError(f"{predictions_path}: {label}: {reason}")
         bad.append((label, reason))
 
-    backend.init()
-    builder = builder or SceneBuilder()
-    items, render_s, t0 = [], 0.0, time.perf_counter()
-    for pred in tqdm(todo, desc="compare", unit="img", disable=not progress):
+    def one_line(exc) -> str:
+        return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+
+    tasks = []
+    for pred in (pfile.predictions[:limit] if limit else pfile.predictions):
         record = records.get(pred.id)
         if record is None:
             fail(pred, f"id not in the manifest of {dataset_dir}")
             continue
         try:
-            item, seconds = compare_one(builder, dataset_dir, record, pred, noise_seed_offset)
-        except (SceneFileError, DatasetError, ImageError, PredictionsError) as exc:
-            fail(pred, str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+            tasks.append(prepare(dataset_dir, record, pred))
+        except BAD_INPUT as exc:
+            fail(pred, one_line(exc))
+
+    backend.init()
+    builder = builder or SceneBuilder()
+    items, render_s, t0 = [], 0.0, time.perf_counter()
+    for task in tqdm(tasks, desc="compare", unit="img", disable=None if progress else True):
+        try:
+            item, seconds = compare_one(builder, task, noise_seed_offset)
+        except BAD_INPUT as exc:
+            fail(task.prediction, one_line(exc))
             continue
         items.append(item)
         render_s += seconds
@@ -222,7 +252,8 @@ def compare_predictions(predictions_path: str | os.PathLike, data_dir: str | Non
 def moved_light_predictions(dataset_dir: str | os.PathLike, spread_deg: float = 30.0,
                             colour_spread: float = 0.1, seed: int = 0, limit: int | None = None) -> list[dict]:
     """Demo predictions: each record's light with its pan and tilt moved by random
-    angles in [-spread_deg, spread_deg] (tilt kept in [0, 90]) and its rgb scaled per
+    angles in [-spread_deg, spread_deg] (a tilt past 90 goes over the zenith, one below 0
+    stops at the horizon) and its rgb scaled per
     channel by ``1 + U(-colour_spread, colour_spread)``. Entries for
     :func:`relight.predictions.write_predictions`."""
     rng = np.random.default_rng(seed)
@@ -231,7 +262,9 @@ def moved_light_predictions(dataset_dir: str | os.PathLike, spread_deg: float = 
         gt = _gt_light(rec)
         d_pan, d_tilt = rng.uniform(-spread_deg, spread_deg, 2)
         rgb = np.asarray(gt.rgb) * (1.0 + rng.uniform(-colour_spread, colour_spread, 3))
-        out.append({"id": rec["id"], "pan_deg": float((gt.pan_rel_deg + d_pan) % 360.0),
-                    "tilt_deg": float(np.clip(gt.tilt_deg + d_tilt, 0.0, 90.0)),
+        pan, tilt = gt.pan_rel_deg + d_pan, gt.tilt_deg + d_tilt
+        if tilt > 90.0:  # past the zenith: the same direction seen from the other side
+            pan, tilt = pan + 180.0, 180.0 - tilt
+        out.append({"id": rec["id"], "pan_deg": float(pan % 360.0), "tilt_deg": float(max(tilt, 0.0)),
                     "rgb": [float(c) for c in rgb]})
     return out

@@ -96,9 +96,11 @@ def pick_columns(direction_errors_deg, max_columns: int = MAX_COLUMNS) -> list[i
     return [int(order[i]) for i in picks]
 
 
-def save_figure3(items, paths: list[str], max_columns: int = MAX_COLUMNS, title: str | None = None) -> list[int]:
+def save_figure3(items, paths: list[str], max_columns: int = MAX_COLUMNS, title: str | None = None,
+                 dpi: int = FIG3_DPI) -> list[int]:
     """The paper's Figure 3 layout for compared items, saved to each of ``paths``
-    (format from the extension, e.g. .png and .pdf). Returns the chosen item indices."""
+    (format from the extension, e.g. .png and .pdf; ``dpi`` for raster formats).
+    Returns the chosen item indices."""
     plt = _plt()
     if not items:
         raise ValueError("save_figure3 needs at least one compared image")
@@ -109,7 +111,7 @@ def save_figure3(items, paths: list[str], max_columns: int = MAX_COLUMNS, title:
     fig = plt.figure(figsize=(1.45 * n + 1.4, 5.6))
     grid = fig.add_gridspec(5, n + 1, height_ratios=[1, 1, 1, 0.22, 0.22],
                             width_ratios=[1] * n + [0.08], hspace=0.06, wspace=0.04,
-                            left=0.07, right=0.93, top=0.9 if title else 0.97, bottom=0.02)
+                            left=0.1, right=0.93, top=0.9 if title else 0.97, bottom=0.02)
     labels = ["(a)", "(b)", "(c)", "Direction", "Colour"]
     image = None
     for c, (i, diff) in enumerate(zip(cols, diffs)):
@@ -137,7 +139,7 @@ def save_figure3(items, paths: list[str], max_columns: int = MAX_COLUMNS, title:
     if title:
         fig.suptitle(title, fontsize=10)
     for path in paths:
-        _atomic_savefig(fig, path, dpi=FIG3_DPI)
+        _atomic_savefig(fig, path, dpi=dpi)
     plt.close(fig)
     return cols
 
@@ -190,6 +192,6 @@ def pole_overlay(image: np.ndarray, pan_rel_deg: float, tilt_deg: float, rgb,
     rendered into its top-left corner (inset about a third of the shorter side)."""
     from relight.verify import spheres
     h, w = image.shape[:2]
-    size = int(np.clip(min(h, w) // 3, 48, 256))
+    size = int(np.clip(min(h, w) // 3, 32, 256))
     inset = spheres.pole_inset(pan_rel_deg, tilt_deg, rgb, camera_tilt_deg, res=size, spp=spp)
     return spheres.overlay_pole(image, inset)

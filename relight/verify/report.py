@@ -174,7 +174,7 @@ def write_report(comparison: Comparison, out_dir: str | os.PathLike, settings: d
         rows = [it.row() for it in items]
         os.makedirs(os.path.join(tmp, "panels"))
         names = []
-        for it in tqdm(items, desc="panels", unit="img", disable=not progress):
+        for it in tqdm(items, desc="panels", unit="img", disable=None if progress else True):
             names.append(f"{it.id}.png")
             figures.save_panel(it, os.path.join(tmp, "panels", names[-1]))
         if items:
