@@ -18,6 +18,7 @@ import sys
 COMMAND_MODULES = [
     "relight.commands.data",
     "relight.commands.demo",
+    "relight.commands.probe",
     "relight.net.commands",
     "relight.verify.commands",
     "relight.inverse.commands",
@@ -60,7 +61,8 @@ def user_errors() -> tuple[type, ...]:
     from relight.scene.spec import SceneFileError
     errors = [BackendError, DatasetError, ImageError, ConfigError, SceneFileError,
               FileNotFoundError, PermissionError, IsADirectoryError, NotADirectoryError]
-    for extra in ("relight.predictions:PredictionsError", "relight.net.io:ModelFileError"):
+    for extra in ("relight.predictions:PredictionsError", "relight.net.io:ModelFileError",
+                  "relight.probes:ProbeError"):
         mod, _, cls = extra.partition(":")
         try:
             errors.append(getattr(importlib.import_module(mod), cls))

@@ -82,3 +82,20 @@ def test_real_spheres_against_lights_txt():
         assert np.all(rgb > 0)
     assert np.median(chrome_err) < REAL_CHROME_MEDIAN_TOL_DEG, chrome_err
     assert np.median(diffuse_err) < REAL_DIFFUSE_MEDIAN_TOL_DEG, diffuse_err
+
+
+@pytest.mark.skipif(not os.path.isdir(DATA), reason="shared/data/psm_spheres not present")
+def test_probe_cli_writes_predictions(tmp_path, capsys):
+    from relight.cli import main
+    from relight.predictions import read_predictions
+    out = tmp_path / "p.json"
+    args = ["probe", "--chrome", f"{DATA}/chrome.3.png", "--chrome-mask", f"{DATA}/chrome.mask.png",
+            "--diffuse", f"{DATA}/gray.3.png", "--diffuse-mask", f"{DATA}/gray.mask.png", "--out", str(out)]
+    assert main(args) == 0
+    pred = read_predictions(out).predictions[0]
+    truth = np.loadtxt(os.path.join(DATA, "lights.txt"), skiprows=1)[3]
+    pan, tilt = probes.camera_to_pan_tilt(truth, 0.0)
+    assert metrics.direction_error_deg(pred.pan_deg, pred.tilt_deg, pan, tilt) < REAL_CHROME_MEDIAN_TOL_DEG * 2
+    assert main(["probe", "--chrome", f"{DATA}/chrome.3.png", "--out", str(tmp_path / "q.json")]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+    assert not (tmp_path / "q.json").exists()
