@@ -1,15 +1,17 @@
 """Turn a :class:`SceneSpec` into a Mitsuba scene, reusing loaded scenes.
 
 Loading a scene (``mi.load_dict``) and compiling its kernels costs more than a render
-at our sizes, so a :class:`SceneTemplate` loads one scene per *structure* (number of
-walls, image size, path depth, mesh topologies) and every spec of that structure is
+at our sizes, so a :class:`SceneTemplate` loads one scene per *structure* (image size,
+path depth, mesh topologies; rooms of up to 8 walls share 8 wall slots) and every spec of that structure is
 written into it through ``mi.traverse``: wall/floor texture pixels, object vertex
 buffers and materials, camera pose and field of view, light position and intensity.
 None of these is a kernel literal, so nothing recompiles. Procedural shapes all share
 one mesh topology (:mod:`relight.scene.shapes`), so they share templates.
 
-Unused object slots (a scene with fewer objects than the template has slots) are
-shrunk to a point 1 km below the floor, where no camera or light ray reaches them.
+Unused object and wall slots are shrunk to a point 1 km below the floor, where no
+camera or light ray reaches them. Fewer live scenes also keep renders fast: Dr.Jit's
+virtual calls dispatch over every live BSDF and shape, so each extra loaded scene
+makes every render a little slower (about 10% for five rooms measured here).
 
 :func:`build_naive` builds a fresh template for one spec: the straightforward way,
 kept for the benchmark and as the readable reference of what a template holds.
@@ -29,6 +31,7 @@ from relight.scene import shapes, textures
 from relight.scene.spec import ObjectSpec, SceneFileError, SceneSpec
 
 N_OBJECT_SLOTS = 3          # the generator places 1-3 objects
+N_WALL_SLOTS = 8            # rooms of up to 8 walls share one loaded scene
 FLOOR_HALF_SIZE_M = 400.0   # floor square reaches past every wall corner
 FLOOR_TILE_M = 10.0         # the floor texture repeats every 10 m
 HIDDEN_DEPTH_M = -1000.0    # where unused object slots are parked
@@ -37,7 +40,7 @@ HIDDEN_DEPTH_M = -1000.0    # where unused object slots are parked
 @dataclass(frozen=True)
 class TemplateKey:
     """What forces a new Mitsuba scene: anything that changes kernel or buffer shapes."""
-    n_walls: int
+    wall_slots: int
     res: int
     max_depth: int
     texture_res: int
@@ -107,7 +110,7 @@ def template_key(spec: SceneSpec, meshes: list[shapes.Mesh]) -> TemplateKey:
     slots = [(len(m.vertices), len(m.faces)) for m in meshes]
     while len(slots) < N_OBJECT_SLOTS:
         slots.append(slots[0] if slots else (shapes.DEFAULT_NU * shapes.DEFAULT_NV, 0))
-    return TemplateKey(spec.room.n_walls, spec.render.res, spec.render.max_depth,
+    return TemplateKey(max(N_WALL_SLOTS, spec.room.n_walls), spec.render.res, spec.render.max_depth,
                        spec.room.texture_res, tuple(slots))
 
 
@@ -173,7 +176,7 @@ class SceneTemplate:
                       "bsdf": {"type": "diffuse", "reflectance": bitmap(
                           mi.ScalarTransform3f().scale(2.0 * FLOOR_HALF_SIZE_M / FLOOR_TILE_M))}},
         }
-        for k in range(key.n_walls):
+        for k in range(key.wall_slots):
             scene[f"wall{k}"] = {"type": "rectangle", "to_world": mi.ScalarTransform4f(np.eye(4)),
                                  "bsdf": {"type": "diffuse", "reflectance": bitmap()}}
         for i, (n_vertices, n_faces) in enumerate(key.slots):
@@ -198,10 +201,15 @@ class SceneTemplate:
         room = spec.room
         res = room.texture_res
         p["floor.bsdf.reflectance.data"] = mi.TensorXf(_texture(_freeze(room.floor_texture), res))
-        for k in range(room.n_walls):
-            p[f"wall{k}.to_world"] = mi.AffineTransform4f(
-                wall_to_world(k, room.n_walls, room.inradius_m, room.height_m, room.rotation_deg))
-            p[f"wall{k}.bsdf.reflectance.data"] = mi.TensorXf(_texture(_freeze(room.wall_textures[k]), res))
+        for k in range(self.key.wall_slots):
+            if k < room.n_walls:
+                p[f"wall{k}.to_world"] = mi.AffineTransform4f(
+                    wall_to_world(k, room.n_walls, room.inradius_m, room.height_m, room.rotation_deg))
+                p[f"wall{k}.bsdf.reflectance.data"] = mi.TensorXf(_texture(_freeze(room.wall_textures[k]), res))
+            else:  # park the unused wall slot: a 1 mm square far below the floor
+                parked = np.diag([1e-3, 1e-3, 1.0, 1.0])
+                parked[2, 3] = HIDDEN_DEPTH_M
+                p[f"wall{k}.to_world"] = mi.AffineTransform4f(parked)
         for i in range(len(self.key.slots)):
             if i < len(spec.objects):
                 obj, mesh = spec.objects[i], meshes[i]
