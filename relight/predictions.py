@@ -2,7 +2,9 @@
 
 A prediction gives either ``pan_deg`` (= pan_rel, the light pan relative to the camera)
 + ``tilt_deg`` (light elevation) + ``rgb``, or the raw 7-vector ``y`` (decoded with the
-camera tilt of the image it belongs to). :func:`read_predictions` validates the whole
+camera tilt of the image it belongs to). A file with ``"colour_only": true`` (the
+colour-constancy baselines) has entries with ``id`` and ``rgb`` only; its direction is
+unknown and consumers that need one take the ground truth's and say so. :func:`read_predictions` validates the whole
 file and raises :class:`PredictionsError` with one line naming the bad entry; with
 ``skip_bad`` it returns the bad entries separately instead.
 """
@@ -34,9 +36,20 @@ class Prediction:
     y: tuple[float, ...] | None = None
     extra: dict = field(default_factory=dict, compare=False)
 
-    def resolve(self, camera_tilt_deg: float) -> tuple[float, float, np.ndarray]:
-        """``(pan_rel_deg, tilt_deg, rgb unit norm)``; ``y`` needs the camera tilt."""
-        if self.y is not None:
+    @property
+    def colour_only(self) -> bool:
+        """True for an entry without a direction (a colour-constancy baseline)."""
+        return self.y is None and self.pan_deg is None
+
+    def resolve(self, camera_tilt_deg: float, direction_if_missing=None) -> tuple[float, float, np.ndarray]:
+        """``(pan_rel_deg, tilt_deg, rgb unit norm)``; ``y`` needs the camera tilt.
+        A colour-only entry takes ``direction_if_missing`` = (pan_rel_deg, tilt_deg)."""
+        if self.colour_only:
+            if direction_if_missing is None:
+                raise PredictionsError(f"entry {self.id!r}: colour-only prediction has no direction")
+            pan, tilt = (float(v) for v in direction_if_missing)
+            rgb = self.rgb
+        elif self.y is not None:
             pan, tilt, rgb = frames.decode_y(np.asarray(self.y), camera_tilt_deg, 0.0)
             pan, tilt = float(pan), float(tilt)
         else:
@@ -59,8 +72,9 @@ def _finite_list(value, n: int, what: str, entry: str) -> tuple[float, ...]:
     return tuple(out)
 
 
-def parse_entry(raw, index: int) -> Prediction:
-    """Validate one raw JSON entry (``index`` is its position, for messages)."""
+def parse_entry(raw, index: int, colour_only: bool = False) -> Prediction:
+    """Validate one raw JSON entry (``index`` is its position, for messages); with
+    ``colour_only`` the entry needs only ``id`` and ``rgb``."""
     if not isinstance(raw, dict):
         raise PredictionsError(f"entry #{index}: expected a JSON object, got {type(raw).__name__}")
     pid = raw.get("id")
@@ -70,6 +84,13 @@ def parse_entry(raw, index: int) -> Prediction:
     if "/" in pid or "\\" in pid or pid in (".", "..") or "\0" in pid:
         raise PredictionsError(f"entry {name}: id must be a plain name, not a path")
     extra = {k: v for k, v in raw.items() if k not in ("id", "pan_deg", "tilt_deg", "rgb", "y")}
+    if colour_only:
+        if "rgb" not in raw:
+            raise PredictionsError(f"entry {name}: missing rgb")
+        rgb = _finite_list(raw["rgb"], 3, "rgb", name)
+        if min(rgb) < 0 or max(rgb) <= 0:
+            raise PredictionsError(f"entry {name}: rgb must be non-negative and non-zero, got {list(rgb)}")
+        return Prediction(id=pid, rgb=rgb, extra=extra)
     if "y" in raw:
         y = _finite_list(raw["y"], frames.Y_SIZE, "y", name)
         rgb = y[4:7]
@@ -96,6 +117,7 @@ class PredictionsFile:
     dataset: str | None = None
     bad: list[tuple[str, str]] = field(default_factory=list)  # (entry, reason) when skip_bad
     meta: dict = field(default_factory=dict)
+    colour_only: bool = False
 
 
 def read_predictions(path: str | os.PathLike, skip_bad: bool = False) -> PredictionsFile:
@@ -114,15 +136,19 @@ def read_predictions(path: str | os.PathLike, skip_bad: bool = False) -> Predict
     entries = data.get("predictions")
     if not isinstance(entries, list):
         raise PredictionsError(f"{path}: 'predictions' must be a list")
+    colour_only = data.get("colour_only", False)
+    if not isinstance(colour_only, bool):
+        raise PredictionsError(f"{path}: 'colour_only' must be true or false")
     dataset = data.get("dataset")
     if dataset is not None and not isinstance(dataset, str):
         raise PredictionsError(f"{path}: 'dataset' must be a path string")
     out = PredictionsFile(predictions=[], dataset=dataset,
-                          meta={k: v for k, v in data.items() if k not in ("format", "predictions", "dataset")})
+                          meta={k: v for k, v in data.items() if k not in ("format", "predictions", "dataset")},
+                          colour_only=colour_only)
     seen = set()
     for i, raw in enumerate(entries):
         try:
-            p = parse_entry(raw, i)
+            p = parse_entry(raw, i, colour_only)
             if p.id in seen:
                 raise PredictionsError(f"entry #{i} (id {p.id!r}): duplicate id")
             seen.add(p.id)
@@ -135,12 +161,19 @@ def read_predictions(path: str | os.PathLike, skip_bad: bool = False) -> Predict
 
 
 def write_predictions(path: str | os.PathLike, entries: list[dict], dataset: str | None = None,
-                      **meta) -> None:
+                      colour_only: bool = False, **meta) -> None:
     """Write a predictions file atomically. Each entry: ``{"id", "pan_deg", "tilt_deg",
-    "rgb"}`` or ``{"id", "y"}`` (extra keys are kept). Entries are validated first."""
+    "rgb"}`` or ``{"id", "y"}`` (extra keys are kept), or ``{"id", "rgb"}`` with
+    ``colour_only``. Entries are validated first (ids unique)."""
+    seen = set()
     for i, e in enumerate(entries):
-        parse_entry(e, i)
+        p = parse_entry(e, i, colour_only)
+        if p.id in seen:
+            raise PredictionsError(f"entry #{i} (id {p.id!r}): duplicate id")
+        seen.add(p.id)
     doc = {"format": PREDICTIONS_FORMAT}
+    if colour_only:
+        doc["colour_only"] = True
     if dataset is not None:
         doc["dataset"] = os.fspath(dataset)
     doc.update(meta)

@@ -12,7 +12,7 @@ import pytest
 
 from relight import metrics
 from relight.cli import main
-from relight.predictions import write_predictions
+from relight.predictions import PredictionsError, write_predictions
 from relight.verify.compare import compare_predictions
 
 N_IMAGES = 5
@@ -233,3 +233,21 @@ def test_no_dataset_is_an_error(records, tmp_path, capsys):
     write_predictions(tmp_path / "p.json", _gt_entries(records)[:1])
     code, _, err = _run(["compare", str(tmp_path / "p.json"), "--out", str(tmp_path / "r")], capsys)
     assert code == 2 and "--data" in err
+
+
+def test_colour_only_predictions_keep_true_direction(tmp_path):
+    # A colour-constancy baseline's file has no direction: compare keeps the true one,
+    # so the direction error is exactly 0 and only the colour error remains.
+    from relight.predictions import read_predictions, write_predictions
+    path = tmp_path / "colour.json"
+    write_predictions(path, [{"id": "a", "rgb": [1.0, 0.9, 0.8]}], colour_only=True)
+    pred = read_predictions(path).predictions[0]
+    assert pred.colour_only
+    pan, tilt, rgb = pred.resolve(30.0, direction_if_missing=(123.0, 45.0))
+    assert (pan, tilt) == (123.0, 45.0) and abs(np.linalg.norm(rgb) - 1) < 1e-12
+    with pytest.raises(PredictionsError):
+        pred.resolve(30.0)
+    path.write_text('{"format": "relight.predictions/v1", "colour_only": true, '
+                    '"predictions": [{"id": "a", "pan_deg": 1, "tilt_deg": 40}]}')
+    with pytest.raises(PredictionsError, match="missing rgb"):
+        read_predictions(path)

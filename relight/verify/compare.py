@@ -148,7 +148,9 @@ def prepare(dataset_dir: str, record: dict, prediction: Prediction) -> Task:
         gt = _gt_light(record)
     except (KeyError, TypeError, ValueError) as exc:
         raise DatasetError(f"manifest record lacks a valid light ({exc})") from None
-    pan, tilt, rgb = prediction.resolve(float(spec.camera.tilt_deg))
+    # colour-only predictions (colour-constancy baselines) keep the true direction
+    pan, tilt, rgb = prediction.resolve(float(spec.camera.tilt_deg),
+                                        direction_if_missing=(spec.pan_rel_deg, spec.light.tilt_deg))
     spec.with_light(pan, tilt, rgb)  # validates the light (finite values)
     return Task(prediction, spec, exr_path, gt, Light(pan, tilt, tuple(float(c) for c in rgb)))
 
