@@ -1,40 +1,10 @@
 """``relight generate`` and ``relight render``."""
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 
-
-def _parse_rgb(text: str) -> tuple[float, float, float]:
-    try:
-        rgb = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected R,G,B numbers, got {text!r}") from None
-    if len(rgb) != 3 or not all(v == v and abs(v) != float("inf") for v in rgb) \
-            or min(rgb) < 0 or max(rgb) <= 0:
-        raise argparse.ArgumentTypeError(f"expected three finite non-negative numbers, not all zero, got {text!r}")
-    return rgb
-
-
-def _finite_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if v != v or abs(v) == float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
-    return v
-
-
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {v}")
-    return v
+from relight.commands.argtypes import finite_float, positive_int, rgb
 
 
 def add_commands(sub) -> None:
@@ -44,10 +14,10 @@ def add_commands(sub) -> None:
     g.add_argument("--count", type=int, default=16, help="total number of images (default 16)")
     g.add_argument("--out", required=True, help="dataset folder")
     g.add_argument("--seed", type=int, default=0, help="dataset seed (default 0)")
-    g.add_argument("--res", type=_positive_int, default=None, help="image size in pixels (default 128)")
-    g.add_argument("--spp", type=_positive_int, default=None, help="samples per pixel (default 64)")
-    g.add_argument("--max-depth", type=_positive_int, default=None, help="path depth (default 4)")
-    g.add_argument("--workers", type=_positive_int, default=1, help="parallel render processes (default 1)")
+    g.add_argument("--res", type=positive_int, default=None, help="image size in pixels (default 128)")
+    g.add_argument("--spp", type=positive_int, default=None, help="samples per pixel (default 64)")
+    g.add_argument("--max-depth", type=positive_int, default=None, help="path depth (default 4)")
+    g.add_argument("--workers", type=positive_int, default=1, help="parallel render processes (default 1)")
     g.add_argument("--config", default=None, help="JSON file of generator settings")
     g.add_argument("--mesh-dir", default=None, help="folder of your own .obj/.ply meshes (z up)")
     g.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -57,11 +27,11 @@ def add_commands(sub) -> None:
                        description="Render SCENE (a relight.scene/v1 file) to OUT (.png or .exr).")
     r.add_argument("scene", help="scene file (JSON)")
     r.add_argument("--out", required=True, help="output image (.png 8-bit sRGB or .exr linear)")
-    r.add_argument("--light-pan", type=_finite_float, default=None,
+    r.add_argument("--light-pan", type=finite_float, default=None,
                    help="light pan relative to the camera, degrees (0 front, 90 right)")
-    r.add_argument("--light-tilt", type=_finite_float, default=None, help="light tilt (elevation), degrees")
-    r.add_argument("--rgb", type=_parse_rgb, default=None, help="light colour R,G,B (linear; normalised)")
-    r.add_argument("--spp", type=_positive_int, default=None, help="override samples per pixel")
+    r.add_argument("--light-tilt", type=finite_float, default=None, help="light tilt (elevation), degrees")
+    r.add_argument("--rgb", type=rgb, default=None, help="light colour R,G,B (linear; normalised)")
+    r.add_argument("--spp", type=positive_int, default=None, help="override samples per pixel")
     r.set_defaults(func=cmd_render)
 
 

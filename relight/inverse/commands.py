@@ -2,12 +2,13 @@
 constancy baselines), plus the small library functions they call."""
 from __future__ import annotations
 
-import argparse
 import csv
 import dataclasses
 import os
 import sys
 from dataclasses import dataclass
+
+from relight.commands.argtypes import positive_float, positive_int
 
 SPLITS = ("test", "val", "train", "all")
 
@@ -115,26 +116,6 @@ def write_trace_csv(path: str, results) -> None:
     os.replace(tmp, path)
 
 
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {v}")
-    return v
-
-
-def _positive_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not v > 0 or v == float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text!r}")
-    return v
-
-
 def add_commands(sub) -> None:
     v = sub.add_parser("invert", help="recover the light by inverse rendering (scene known)",
                        description="Fit the light direction (pan/tilt on the sphere of the scene's "
@@ -145,14 +126,14 @@ def add_commands(sub) -> None:
     src.add_argument("--scene", help="scene file of a single image (with --image)")
     v.add_argument("--image", help="the image to invert (.exr linear, or .png sRGB) with --scene")
     v.add_argument("--split", choices=SPLITS, default="test", help="dataset split (default test)")
-    v.add_argument("--limit", type=_positive_int, default=None, help="first N images of the split")
+    v.add_argument("--limit", type=positive_int, default=None, help="first N images of the split")
     v.add_argument("--out", required=True, help="predictions file to write (relight.predictions/v1)")
     v.add_argument("--trace", default=None, help="per-iteration CSV (default: OUT with .trace.csv)")
     v.add_argument("--init", default="grid",
                    help="'grid' (coarse search, default), 'network', or a predictions file")
     v.add_argument("--model", default=None, help="model file for --init network (default: shipped)")
-    v.add_argument("--max-iters", type=_positive_int, default=None, help="LM iterations per image (default 60)")
-    v.add_argument("--time-budget", type=_positive_float, default=None,
+    v.add_argument("--max-iters", type=positive_int, default=None, help="LM iterations per image (default 60)")
+    v.add_argument("--time-budget", type=positive_float, default=None,
                    help="seconds per image (default 60)")
     v.add_argument("--fit-radius", action="store_true", help="also fit the light distance")
     v.add_argument("--seed", type=int, default=None, help="sampler seed of the fit (default 1)")
@@ -166,7 +147,7 @@ def add_commands(sub) -> None:
     b.add_argument("name", choices=sorted(METHODS), help="method")
     b.add_argument("--data", required=True, help="dataset folder")
     b.add_argument("--split", choices=SPLITS, default="test", help="dataset split (default test)")
-    b.add_argument("--limit", type=_positive_int, default=None, help="first N images of the split")
+    b.add_argument("--limit", type=positive_int, default=None, help="first N images of the split")
     b.add_argument("--out", required=True, help="predictions file to write")
     b.set_defaults(func=cmd_baseline)
 

@@ -2,7 +2,6 @@
 :mod:`relight.verify.compare`, :mod:`relight.verify.report` and :mod:`relight.verify.figures`."""
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import shutil
@@ -11,27 +10,9 @@ import tempfile
 
 import numpy as np
 
+from relight.commands.argtypes import camera_tilt, positive_int
+
 DEFAULT_PHOTO_CAMERA_TILT_DEG = 45.0   # the paper's assumption for photographs
-
-
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {v}")
-    return v
-
-
-def _camera_tilt(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number of degrees, got {text!r}") from None
-    if not (math.isfinite(v) and -90.0 < v < 90.0):
-        raise argparse.ArgumentTypeError(f"camera tilt must be in (-90, 90) degrees, got {text!r}")
-    return v
 
 
 def add_commands(sub) -> None:
@@ -43,8 +24,8 @@ def add_commands(sub) -> None:
     c.add_argument("--data", default=None, help="dataset folder (default: the file's 'dataset' field)")
     c.add_argument("--out", required=True, help="report folder (written atomically)")
     c.add_argument("--skip-bad", action="store_true", help="skip bad entries and list them in the report")
-    c.add_argument("--limit", type=_positive_int, default=None, help="compare only the first N predictions")
-    c.add_argument("--max-columns", type=_positive_int, default=8, help="columns of figure3 (default 8)")
+    c.add_argument("--limit", type=positive_int, default=None, help="compare only the first N predictions")
+    c.add_argument("--max-columns", type=positive_int, default=8, help="columns of figure3 (default 8)")
     c.add_argument("--quiet", action="store_true", help="no progress bar")
     c.set_defaults(func=cmd_compare)
 
@@ -58,11 +39,11 @@ def add_commands(sub) -> None:
     s.add_argument("predictions", help="predictions file")
     s.add_argument("--data", default=None, help="dataset folder (default: the file's 'dataset' field, if any)")
     s.add_argument("--out", required=True, help="output folder (spheres_NNN.png/.pdf, 8 images a page)")
-    s.add_argument("--camera-tilt", type=_camera_tilt, default=DEFAULT_PHOTO_CAMERA_TILT_DEG,
+    s.add_argument("--camera-tilt", type=camera_tilt, default=DEFAULT_PHOTO_CAMERA_TILT_DEG,
                    help="camera tilt in degrees for entries without a dataset record (default 45)")
-    s.add_argument("--res", type=_positive_int, default=96, help="sphere render size in pixels (default 96)")
-    s.add_argument("--spp", type=_positive_int, default=32, help="samples per pixel (default 32)")
-    s.add_argument("--limit", type=_positive_int, default=None, help="only the first N predictions")
+    s.add_argument("--res", type=positive_int, default=96, help="sphere render size in pixels (default 96)")
+    s.add_argument("--spp", type=positive_int, default=32, help="samples per pixel (default 32)")
+    s.add_argument("--limit", type=positive_int, default=None, help="only the first N predictions")
     s.set_defaults(func=cmd_spheres)
 
     p = fsub.add_parser("pole", help="draw a rendered pole and its shadow under the predicted light",
@@ -70,7 +51,7 @@ def add_commands(sub) -> None:
                                     "light into IMAGE's top-left corner (paper Figure 5).")
     p.add_argument("image", help="image (PNG/JPEG taken as sRGB, EXR linear)")
     p.add_argument("predictions", help="predictions file")
-    p.add_argument("--camera-tilt", type=_camera_tilt, default=DEFAULT_PHOTO_CAMERA_TILT_DEG,
+    p.add_argument("--camera-tilt", type=camera_tilt, default=DEFAULT_PHOTO_CAMERA_TILT_DEG,
                    help="assumed camera tilt in degrees (default 45, as in the paper)")
     p.add_argument("--id", default=None, help="entry to use (default: the only entry, or the image's file stem)")
     p.add_argument("--out", required=True, help="output PNG")
