@@ -1,28 +1,9 @@
 """``relight train``, ``relight evaluate`` and ``relight predict``."""
 from __future__ import annotations
 
-import argparse
 import os
 
-
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {v}")
-    return v
-
-
-def _finite_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if v != v or abs(v) == float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
-    return v
+from relight.commands.argtypes import camera_tilt, finite_float, positive_int
 
 
 def add_commands(sub) -> None:
@@ -31,16 +12,18 @@ def add_commands(sub) -> None:
                                    "on the train split of DATA; the val split drives the scheduler.")
     t.add_argument("--data", required=True, help="dataset folder (relight generate output)")
     t.add_argument("--out", required=True, help="run folder (checkpoints, log.csv, curves.png, settings.json)")
-    t.add_argument("--epochs", type=_positive_int, default=10, help="total epochs (default 10)")
-    t.add_argument("--batch-size", type=_positive_int, default=16, help="batch size (default 16, the paper's)")
-    t.add_argument("--lr", type=_finite_float, default=2e-4, help="Adam learning rate (default 2e-4)")
-    t.add_argument("--res", type=_positive_int, default=128, help="network input size, pixels (default 128)")
+    t.add_argument("--epochs", type=positive_int, default=10, help="total epochs (default 10)")
+    t.add_argument("--batch-size", type=positive_int, default=16, help="batch size (default 16, the paper's)")
+    t.add_argument("--lr", type=finite_float, default=2e-4, help="Adam learning rate (default 2e-4)")
+    t.add_argument("--res", type=positive_int, default=128, help="network input size, pixels (default 128)")
     t.add_argument("--seed", type=int, default=0, help="initialisation/shuffle seed (default 0)")
     t.add_argument("--patience", type=int, default=2, help="plateau patience in epochs (default 2)")
     t.add_argument("--no-flip", action="store_true", help="disable horizontal-flip augmentation")
-    t.add_argument("--torch-threads", type=_positive_int, default=1,
+    t.add_argument("--torch-threads", type=positive_int, default=1,
                    help="torch CPU threads (default 1: fastest on a busy 2-core machine)")
     t.add_argument("--workers", type=int, default=0, help="DataLoader workers (default 0, images cached)")
+    t.add_argument("--max-minutes", type=finite_float, default=None,
+                   help="stop after the epoch that passes this many minutes (resume later)")
     t.add_argument("--resume", action="store_true", help="continue the run in --out")
     t.add_argument("--quiet", action="store_true", help="no progress bar")
     t.set_defaults(func=cmd_train)
@@ -58,7 +41,7 @@ def add_commands(sub) -> None:
     p = sub.add_parser("predict", help="predict light direction and colour of images",
                        description="Predict the light of PNG/JPEG (sRGB) or EXR (linear) images of any size.")
     p.add_argument("images", nargs="+", help="image files or folders of images")
-    p.add_argument("--camera-tilt", type=_finite_float, default=None,
+    p.add_argument("--camera-tilt", type=camera_tilt, default=None,
                    help="camera tilt in degrees used to decode the light tilt (default 45, the paper's)")
     p.add_argument("--model", default=None, help="model .safetensors or run folder (default: shipped model)")
     p.add_argument("--out", required=True, help="predictions file to write (relight.predictions/v1)")
@@ -69,7 +52,8 @@ def cmd_train(args) -> int:
     from relight.net.train import TrainConfig, train
     cfg = TrainConfig(data_dir=args.data, epochs=args.epochs, batch_size=args.batch_size, lr=float(args.lr),
                       res=args.res, seed=args.seed, flip=not args.no_flip, plateau_patience=args.patience,
-                      threads=args.torch_threads, workers=args.workers)
+                      threads=args.torch_threads, workers=args.workers,
+                      max_minutes=args.max_minutes)
     row = train(cfg, args.out, resume=args.resume, progress=not args.quiet)
     if row:
         print(f"{args.out}: epoch {row['epoch']}, val loss {row['val_loss']:.4f}, val mean direction "

@@ -34,6 +34,7 @@ def save_model(path: str | os.PathLike, model: LightNet, info: dict | None = Non
             "config": json.dumps(model.config.to_dict()), "info": json.dumps(info or {})}
     tmp = f"{path}.tmp{os.getpid()}"
     save_file(state, tmp, metadata=meta)
+    os.chmod(tmp, 0o644)  # a shipped, readable package file
     os.replace(tmp, path)
 
 

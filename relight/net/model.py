@@ -8,7 +8,7 @@ r, g, b]``. The inception modules are the "split" ones of Inception-v3 (Szegedy 
 al. 2016, "Rethinking the Inception Architecture"): an n x n convolution is replaced
 by 1 x n followed by n x 1. Weights use He-normal initialisation.
 
-Sized for a 2-core CPU (about 1.5 M parameters, about 0.2 GFLOP per 128 px image);
+Sized for a 2-core CPU (0.47 M parameters, 0.127 GFLOP per 128 px image forward);
 see ``benchmarks/bench_network.py``. The input resolution is a parameter: an adaptive
 pooling before the embedding keeps the parameter count independent of it.
 

@@ -62,6 +62,9 @@ class TrainConfig:
             to the train split (tiny datasets).
         loss_weights: alpha_1..3 of the loss.
         width: network base width (see NetConfig).
+        max_minutes: stop after the first epoch that ends past this wall time
+            (minutes from the start of this invocation; None: no limit). A later
+            ``resume`` continues from there.
     """
     data_dir: str
     epochs: int = 10
@@ -78,6 +81,7 @@ class TrainConfig:
     val_split: str = "val"
     loss_weights: LossWeights = field(default_factory=LossWeights)
     width: int = 32
+    max_minutes: float | None = None
 
     def __post_init__(self):
         for name in ("epochs", "batch_size", "res", "threads"):
@@ -183,7 +187,14 @@ def train(cfg: TrainConfig, out_dir: str | os.PathLike, resume: bool = False, pr
             print(f"{out_dir}: already trained for {start_epoch} epochs (asked {cfg.epochs})")
         return rows[-1] if rows else {}
 
+    started = time.perf_counter()
     for epoch in range(start_epoch, cfg.epochs):
+        if (cfg.max_minutes is not None and epoch > start_epoch
+                and time.perf_counter() - started > 60.0 * cfg.max_minutes):
+            if progress:
+                tqdm.write(f"time budget of {cfg.max_minutes:g} min used after epoch {epoch}; "
+                           "resume with --resume to continue")
+            break
         if cfg.grow and epoch > start_epoch:
             train_set.refresh(), val_set.refresh()
         evaluation_set = val_set if len(val_set) else LightDataset(cfg.data_dir, cfg.train_split, cfg.res,

@@ -1,0 +1,193 @@
+"""relight.net train / evaluate / predict end to end on a tiny rendered dataset,
+and the CLI's handling of bad inputs (one line on stderr, exit 2)."""
+import csv
+import json
+import os
+
+import numpy as np
+import pytest
+import torch
+
+from relight.cli import main
+from relight.dataset import DatasetError
+from relight.net.io import ModelFileError, load_model_file, save_model
+from relight.net.loss import light_loss
+from relight.net.model import LightNet, NetConfig
+from relight.net.predict import load_model, predict_arrays, predict_files
+from relight.net.train import TrainConfig, train
+from relight.predictions import read_predictions
+
+RES = 32
+OVERFIT_LOSS = 0.02          # a few images, many steps: the loss (~1 at start) gets near zero
+OVERFIT_STEPS = 300
+SAME_INPUT_ATOL = 1e-6       # same pixels through two paths give the same outputs
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    from relight.dataset import generate
+    from relight.scene.sampling import GeneratorConfig
+    root = tmp_path_factory.mktemp("tiny")
+    generate(root, count=8, seed=11, cfg=GeneratorConfig(res=RES, spp=4), progress=False)
+    return str(root)
+
+
+@pytest.fixture(scope="module")
+def model_file(tmp_path_factory):
+    torch.manual_seed(0)
+    path = str(tmp_path_factory.mktemp("m") / "net.safetensors")
+    save_model(path, LightNet(NetConfig(res=RES, width=8)), {"note": "untrained"})
+    return path
+
+
+def test_tiny_overfit(tiny):
+    from relight.net.data import LightDataset
+    torch.manual_seed(0)
+    torch.set_num_threads(1)
+    ds = LightDataset(tiny, "all", res=RES)
+    x = torch.stack([ds[i][0] for i in range(4)])
+    y = torch.stack([ds[i][1] for i in range(4)])
+    net = LightNet(NetConfig(res=RES, width=16))
+    opt = torch.optim.Adam(net.parameters(), lr=1e-3)
+    first = None
+    for _ in range(OVERFIT_STEPS):
+        loss = light_loss(net(x), y)
+        first = first if first is not None else loss.item()
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    assert loss.item() < OVERFIT_LOSS < first
+
+
+def test_resume_equals_uninterrupted(tiny, tmp_path):
+    cfg2 = TrainConfig(data_dir=tiny, epochs=2, batch_size=4, res=RES, width=8, seed=5)
+    cfg1 = TrainConfig(data_dir=tiny, epochs=1, batch_size=4, res=RES, width=8, seed=5)
+    train(cfg2, tmp_path / "straight", progress=False)
+    train(cfg1, tmp_path / "cut", progress=False)
+    with pytest.raises(DatasetError, match="--resume"):
+        train(cfg1, tmp_path / "cut", progress=False)  # refuses to overwrite a run
+    row = train(cfg2, tmp_path / "cut", resume=True, progress=False)
+    assert row["epoch"] == 2
+    a = torch.load(tmp_path / "straight" / "checkpoint.pt", weights_only=True)
+    b = torch.load(tmp_path / "cut" / "checkpoint.pt", weights_only=True)
+    assert a["epoch"] == b["epoch"] == 2
+    for k in a["model"]:
+        assert torch.equal(a["model"][k], b["model"][k]), k
+    assert a["optimiser"]["state"][0]["step"] == b["optimiser"]["state"][0]["step"]
+    with open(tmp_path / "cut" / "log.csv") as f:
+        assert [r["epoch"] for r in csv.DictReader(f)] == ["1", "2"]
+    assert os.path.getsize(tmp_path / "cut" / "curves.png") > 0
+    settings = json.load(open(tmp_path / "cut" / "settings.json"))
+    assert settings["epochs"] == 2 and settings["lr"] == 2e-4
+    load_model_file(tmp_path / "cut")  # a run folder loads its best.safetensors
+
+
+def test_predict_paths_agree(tiny, model_file, tmp_path):
+    """An image given as a linear array, as the PNG write_png makes of it, and as an EXR
+    all reach the network as the same 8-bit sRGB pixels."""
+    from relight.render import read_exr, write_exr, write_png
+    model = load_model(model_file)
+    linear = read_exr(os.path.join(tiny, "exr", "000000.exr"))
+    write_png(tmp_path / "a.png", linear)
+    write_exr(tmp_path / "b.exr", linear)
+    from PIL import Image
+    Image.open(tmp_path / "a.png").save(tmp_path / "c.jpg", quality=100)
+    arr = predict_arrays(model, [linear], [30.0])[0]
+    files = predict_files(model, [str(tmp_path / "a.png"), str(tmp_path / "b.exr")], 30.0)
+    for p in files:
+        np.testing.assert_allclose(p["y"], arr["y"], atol=SAME_INPUT_ATOL)
+    assert files[0]["id"] == "a" and "sRGB" in files[0]["assumed"] and "linear" in files[1]["assumed"]
+    assert set(arr) == {"pan_deg", "tilt_deg", "rgb", "y"}
+    assert np.linalg.norm(arr["rgb"]) == pytest.approx(1.0)
+    assert 0 <= arr["pan_deg"] < 360
+
+
+def test_cli_predict_png_jpeg_exr(tiny, model_file, tmp_path, capsys):
+    from PIL import Image
+
+    from relight.render import read_exr, write_exr
+    img_dir = tmp_path / "imgs"
+    img_dir.mkdir()
+    Image.open(os.path.join(tiny, "images", "000001.png")).resize((50, 40)).save(img_dir / "photo.jpg")
+    Image.open(os.path.join(tiny, "images", "000002.png")).save(img_dir / "shot.png")
+    write_exr(img_dir / "hdr.exr", read_exr(os.path.join(tiny, "exr", "000003.exr")))
+    out = tmp_path / "pred.json"
+    assert main(["predict", str(img_dir), "--model", model_file, "--camera-tilt", "30", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "linear (EXR)" in text and "8-bit sRGB" in text and "30" in text
+    preds = read_predictions(out)
+    assert sorted(p.id for p in preds.predictions) == ["hdr", "photo", "shot"]
+
+
+def test_cli_evaluate_writes_report(tiny, model_file, tmp_path):
+    rep = tmp_path / "rep"
+    assert main(["evaluate", "--model", model_file, "--data", tiny, "--split", "all", "--out", str(rep)]) == 0
+    for name in ("report.md", "metrics.json", "per_image.csv", "predictions.json"):
+        assert (rep / name).is_file(), name
+    tables = json.load(open(rep / "metrics.json"))["tables"]
+    with open(rep / "per_image.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 8 == tables["overall"]["direction"]["n"]
+    mean_dir = np.mean([float(r["direction_err_deg"]) for r in rows])
+    assert tables["overall"]["direction"]["mean"] == pytest.approx(mean_dir, abs=1e-3)
+    assert "Table 2" in open(rep / "report.md").read()
+    assert len(read_predictions(rep / "predictions.json").predictions) == 8
+
+
+def _one_line_error(capsys):
+    err = capsys.readouterr().err
+    assert err.startswith("relight: error:") and err.count("\n") == 1, err
+    return err
+
+
+def test_cli_unreadable_image_exit_2(model_file, tmp_path, capsys):
+    bad = tmp_path / "broken.png"
+    bad.write_bytes(b"not a png at all")
+    assert main(["predict", str(bad), "--model", model_file, "--out", str(tmp_path / "p.json")]) == 2
+    assert "broken.png" in _one_line_error(capsys)
+    assert not (tmp_path / "p.json").exists()
+    assert main(["predict", str(tmp_path / "missing.png"), "--model", model_file,
+                 "--out", str(tmp_path / "p.json")]) == 2
+    _one_line_error(capsys)
+
+
+@pytest.mark.parametrize("content", [b"garbage bytes", None])
+def test_cli_wrong_model_file_exit_2(tiny, tmp_path, capsys, content):
+    from safetensors.torch import save_file
+    bad = tmp_path / "bad.safetensors"
+    if content is None:  # a valid safetensors file that is not a relight model
+        save_file({"w": torch.zeros(3)}, str(bad), metadata={"format": "something/else"})
+    else:
+        bad.write_bytes(content)
+    img = os.path.join(tiny, "images", "000000.png")
+    assert main(["predict", img, "--model", str(bad), "--out", str(tmp_path / "p.json")]) == 2
+    assert "bad.safetensors" in _one_line_error(capsys)
+    assert main(["evaluate", "--model", str(bad), "--data", tiny, "--out", str(tmp_path / "r")]) == 2
+    _one_line_error(capsys)
+
+
+def test_model_file_mismatched_weights(model_file, tmp_path):
+    from safetensors import safe_open
+    from safetensors.torch import save_file
+    with safe_open(model_file, framework="pt") as f:
+        meta, state = f.metadata(), {k: f.get_tensor(k) for k in f.keys()}
+    state.pop(next(iter(state)))
+    save_file(state, str(tmp_path / "cut.safetensors"), metadata=meta)
+    with pytest.raises(ModelFileError, match="missing"):
+        load_model_file(tmp_path / "cut.safetensors")
+
+
+def test_shipped_model_loads():
+    from relight.net.io import SHIPPED_MODEL
+    if not os.path.isfile(SHIPPED_MODEL):
+        pytest.skip("no shipped model in this build")
+    model = load_model()
+    assert model.config.res == 128 and not model.training
+
+
+def test_time_budget_stops_after_an_epoch(tiny, tmp_path):
+    cfg = TrainConfig(data_dir=tiny, epochs=3, batch_size=8, res=RES, width=8, max_minutes=0.0)
+    row = train(cfg, tmp_path / "budget", progress=False)
+    assert row["epoch"] == 1  # the budget is checked before each epoch; the first always runs
+    row = train(cfg, tmp_path / "budget", resume=True, progress=False)
+    assert row["epoch"] == 2
