@@ -6,6 +6,17 @@ import os
 from relight.commands.argtypes import camera_tilt, finite_float, positive_int
 
 
+def _loss_weights(text: str):
+    import argparse
+
+    from relight.net.loss import LossWeights
+    try:
+        pan, tilt, colour = (float(v) for v in text.split(","))
+        return LossWeights(pan=pan, tilt=tilt, colour=colour)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected three finite numbers >= 0 like 1,1,1, got {text!r}") from None
+
+
 def add_commands(sub) -> None:
     t = sub.add_parser("train", help="train the light regression network on a dataset (resumable)",
                        description="Train the paper's network (Adam, ReduceLROnPlateau x0.1 on val loss) "
@@ -22,6 +33,9 @@ def add_commands(sub) -> None:
     t.add_argument("--torch-threads", type=positive_int, default=1,
                    help="torch CPU threads (default 1: fastest on a busy 2-core machine)")
     t.add_argument("--workers", type=int, default=0, help="DataLoader workers (default 0, images cached)")
+    t.add_argument("--loss-weights", type=_loss_weights, default="1,1,1", metavar="PAN,TILT,COLOUR",
+                   help="alpha_1..3 of the paper's loss (colour per radian; default 1,1,1)")
+    t.add_argument("--width", type=positive_int, default=32, help="network base width (default 32)")
     t.add_argument("--max-minutes", type=finite_float, default=None,
                    help="stop after the epoch that passes this many minutes (resume later)")
     t.add_argument("--resume", action="store_true", help="continue the run in --out")
@@ -53,7 +67,7 @@ def cmd_train(args) -> int:
     cfg = TrainConfig(data_dir=args.data, epochs=args.epochs, batch_size=args.batch_size, lr=float(args.lr),
                       res=args.res, seed=args.seed, flip=not args.no_flip, plateau_patience=args.patience,
                       threads=args.torch_threads, workers=args.workers,
-                      max_minutes=args.max_minutes)
+                      max_minutes=args.max_minutes, loss_weights=args.loss_weights, width=args.width)
     row = train(cfg, args.out, resume=args.resume, progress=not args.quiet)
     if row:
         print(f"{args.out}: epoch {row['epoch']}, val loss {row['val_loss']:.4f}, val mean direction "
