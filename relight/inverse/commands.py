@@ -93,7 +93,7 @@ def invert_jobs(jobs: list[Job], init: str, cfg, progress: bool = True,
         spec = load_scene(job.scene_path)
         image, _ = read_image(job.image_path)
         # a fresh builder per image: every live Mitsuba scene enlarges Dr.Jit's virtual-call
-        # tables, and renders slowed ~3x after 8 images when templates were kept
+        # tables; one shared builder measured 1.1-1.2 s per image against 0.9 s (10 images)
         out.append((job, invert(spec, image, starts.get(job.id, "grid"), cfg, SceneBuilder(max_templates=2))))
     return out
 
