@@ -29,10 +29,12 @@ __all__ = [
     "wrap360", "wrap180", "spherical_to_cartesian", "cartesian_to_spherical",
     "direction", "pan_rel_deg", "encode_y", "decode_y", "camera_basis",
     "camera_position", "camera_to_world", "world_to_camera", "camera_to_world_vector",
-    "mitsuba_sensor_to_world", "travel_direction", "Y_SIZE",
+    "mitsuba_sensor_to_world", "travel_direction", "tangent_basis", "Y_SIZE",
+    "PHOTO_CAMERA_TILT_DEG",
 ]
 
 Y_SIZE = 7  # the paper's target vector: pan sin/cos, tilt sin/cos, r, g, b
+PHOTO_CAMERA_TILT_DEG = 45.0  # assumed camera tilt of a photograph (the paper's choice)
 
 
 def wrap360(angle_deg):
@@ -70,6 +72,20 @@ def spherical_to_cartesian(r_m, pan_deg, tilt_deg) -> np.ndarray:
 def direction(pan_deg, tilt_deg) -> np.ndarray:
     """Unit vector toward (pan, tilt), world frame; shape ``(..., 3)``."""
     return spherical_to_cartesian(1.0, pan_deg, tilt_deg)
+
+
+def tangent_basis(pan_deg: float, tilt_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """Unit tangents of the sphere at ``direction(pan, tilt)``, world frame.
+
+    Returns ``(e_pan, e_tilt)``: ``e_pan`` points toward increasing pan (horizontal,
+    counter-clockwise seen from above), ``e_tilt`` toward increasing tilt (up, toward the
+    zenith). ``d(direction)/d(pan_rad) = cos(tilt) e_pan`` and
+    ``d(direction)/d(tilt_rad) = e_tilt``. Defined at the zenith too (pan picks the frame).
+    """
+    p, t = np.radians(float(pan_deg)), np.radians(float(tilt_deg))
+    e_pan = np.array([-np.sin(p), np.cos(p), 0.0])
+    e_tilt = np.array([-np.sin(t) * np.cos(p), -np.sin(t) * np.sin(p), np.cos(t)])
+    return e_pan, e_tilt
 
 
 def cartesian_to_spherical(p) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -88,3 +88,17 @@ def test_mitsuba_sensor_matches_look_at(mi):
 
 def test_travel_direction_flips_sign():
     assert np.allclose(frames.travel_direction([0, 0, 1]), [0, 0, -1])
+
+
+def test_tangent_basis_is_the_derivative_of_direction():
+    # d(direction)/d(tilt) = e_tilt and d(direction)/d(pan) = cos(tilt) e_pan (central
+    # differences, 1e-4 deg); both orthogonal to the direction; e_tilt up at the horizon.
+    h = 1e-4
+    for pan, tilt in [(0.0, 0.0), (123.0, 35.0), (300.0, 80.0)]:
+        e_pan, e_tilt = frames.tangent_basis(pan, tilt)
+        d_pan = (frames.direction(pan + h, tilt) - frames.direction(pan - h, tilt)) / np.radians(2 * h)
+        d_tilt = (frames.direction(pan, tilt + h) - frames.direction(pan, tilt - h)) / np.radians(2 * h)
+        assert np.allclose(d_pan, np.cos(np.radians(tilt)) * e_pan, atol=1e-7)
+        assert np.allclose(d_tilt, e_tilt, atol=1e-7)
+        assert abs(e_pan @ frames.direction(pan, tilt)) < TOL and abs(e_tilt @ e_pan) < TOL
+    assert np.allclose(frames.tangent_basis(0.0, 0.0)[1], [0, 0, 1])

@@ -190,10 +190,8 @@ def tangent_move(pan_deg: float, tilt_deg: float, du_deg: float, dv_deg: float) 
     """Move a direction by arc steps: ``du`` along increasing pan (horizontal), ``dv``
     along increasing tilt (toward the zenith), both in degrees of arc; returns
     ``(pan_deg in [0, 360), tilt_deg in [-90, 90])``. Regular at the zenith."""
-    p, t = math.radians(pan_deg), math.radians(tilt_deg)
     d = frames.direction(pan_deg, tilt_deg)
-    e_pan = np.array([-math.sin(p), math.cos(p), 0.0])
-    e_tilt = np.array([-math.sin(t) * math.cos(p), -math.sin(t) * math.sin(p), math.cos(t)])
+    e_pan, e_tilt = frames.tangent_basis(pan_deg, tilt_deg)
     # exact geodesic step of length |(du, dv)| in the tangent direction
     step = math.radians(du_deg) * e_pan + math.radians(dv_deg) * e_tilt
     angle = float(np.linalg.norm(step))
@@ -478,8 +476,6 @@ def ad_loss_gradient(renderer: LightRenderer, target: np.ndarray, pan_rel_deg: f
     dr.backward(dr.sum(dr.square(residual_img), axis=None) / float(np.sum(t.astype(np.float64) ** 2)))
     grad_position = np.array(dr.grad(position), dtype=np.float64).ravel()
     dr.disable_grad(position)
-    p, tl = math.radians(pan_rel_deg + renderer.spec.camera.pan_deg), math.radians(tilt_deg)
-    e_pan = np.array([-math.sin(p), math.cos(p), 0.0])
-    e_tilt = np.array([-math.sin(tl) * math.cos(p), -math.sin(tl) * math.sin(p), math.cos(tl)])
+    e_pan, e_tilt = frames.tangent_basis(pan_rel_deg + renderer.spec.camera.pan_deg, tilt_deg)
     per_deg = r_m * math.pi / 180.0  # metres of light travel per arc degree
     return loss, np.array([grad_position @ e_pan, grad_position @ e_tilt]) * per_deg

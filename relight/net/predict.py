@@ -14,11 +14,12 @@ import os
 import numpy as np
 import torch
 
+from relight import frames
 from relight.net.data import prepare_srgb8
 from relight.net.evaluate import decode_outputs
 from relight.net.io import SHIPPED_MODEL, ModelFileError, load_model_file
 
-DEFAULT_CAMERA_TILT_DEG = 45.0  # the paper's assumption for photographs
+DEFAULT_CAMERA_TILT_DEG = frames.PHOTO_CAMERA_TILT_DEG  # the paper's assumption for photographs
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".exr")
 
 __all__ = ["load_model", "predict_arrays", "predict_files", "list_images", "ModelFileError",

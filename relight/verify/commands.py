@@ -11,8 +11,8 @@ import tempfile
 import numpy as np
 
 from relight.commands.argtypes import camera_tilt, positive_int
+from relight.frames import PHOTO_CAMERA_TILT_DEG as DEFAULT_PHOTO_CAMERA_TILT_DEG
 
-DEFAULT_PHOTO_CAMERA_TILT_DEG = 45.0   # the paper's assumption for photographs
 
 
 def add_commands(sub) -> None:
