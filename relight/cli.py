@@ -22,6 +22,7 @@ COMMAND_MODULES = [
     "relight.net.commands",
     "relight.verify.commands",
     "relight.inverse.commands",
+    "relight.commands.blender",
 ]
 
 EXIT_USAGE = 2
@@ -62,7 +63,7 @@ def user_errors() -> tuple[type, ...]:
     errors = [BackendError, DatasetError, ImageError, ConfigError, SceneFileError,
               FileNotFoundError, PermissionError, IsADirectoryError, NotADirectoryError]
     for extra in ("relight.predictions:PredictionsError", "relight.net.io:ModelFileError",
-                  "relight.probes:ProbeError"):
+                  "relight.probes:ProbeError", "relight.blender:BlenderError"):
         mod, _, cls = extra.partition(":")
         try:
             errors.append(getattr(importlib.import_module(mod), cls))
