@@ -1,7 +1,14 @@
-"""Generation benchmark: images/s, overhead over the render call, and the naive way.
+"""Generation benchmark: equal-error sampler table, images/s, overhead over the render call.
 
-Measured in one run on the same scenes (after a warm-up that loads every room
-structure once, so both ways run with compiled kernels):
+Equal error (``--calibrate``, also run by default): 8 fixed default scenes (128 px,
+path depth 4) rendered with each Mitsuba sampler at the sample counts it takes
+exactly; relative RMSE against a 4096-spp ``independent`` reference of each scene
+(``relight.scene.noise.relative_rmse``) and render seconds per image, all in one
+run. It prints the table, the spp each sampler needs for the target, and the
+``CALIBRATION`` literal of :mod:`relight.scene.noise` (paste it there to recalibrate).
+
+Speed, measured in one run on the same scenes (after a warm-up that loads every room
+structure once, so both ways run with compiled kernels), at the default noise target:
 
 * template way: ``relight.dataset.generate`` (one loaded scene per structure, updated
   through ``mi.traverse``), images/s and total time / time inside ``mi.render``;
@@ -9,7 +16,11 @@ structure once, so both ways run with compiled kernels):
   rendering and file writing;
 * optionally the template way with 2 worker processes.
 
-Usage: python benchmarks/bench_generate.py [--n 24] [--res 128] [--spp 64] [--workers 2]
+Where the Blender environment exists (``scripts/setup_blender.sh``), the Cycles
+comparison of ``benchmarks/bench_cycles.py`` follows.
+
+Usage: python benchmarks/bench_generate.py [--n 48] [--res 128] [--spp N | --target-rmse E]
+                                           [--workers 2] [--calibrate | --no-calibrate]
 """
 from __future__ import annotations
 
@@ -21,22 +32,88 @@ import time
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
+import dataclasses  # noqa: E402
+
+import numpy as np  # noqa: E402
+
 from relight import backend  # noqa: E402
 from relight.dataset import _write_card, generate  # noqa: E402
 from relight.render import write_exr, write_png  # noqa: E402
-from relight.scene.build import build_naive  # noqa: E402
+from relight.scene import noise  # noqa: E402
+from relight.scene.build import SceneBuilder, build_naive  # noqa: E402
 from relight.scene.sampling import GeneratorConfig, sample_scene  # noqa: E402
+
+# Sample counts each Mitsuba sampler takes without rounding them.
+EXACT_SPP = {
+    "independent": (4, 8, 16, 32, 64, 128, 256),
+    "stratified": (4, 16, 64, 256),
+    "multijitter": (4, 8, 12, 16, 25, 36, 64, 100, 144, 256),
+    "orthogonal": (4, 9, 25, 49, 121),
+    "ldsampler": (4, 16, 64, 256),
+}
+CALIBRATION_SEED, CALIBRATION_SCENES, REFERENCE_SPP = 777, 8, 4096
+
+
+def equal_error_table(res: int, target: float) -> None:
+    """Relative RMSE and render time per sampler and spp on fixed scenes (one run)."""
+    builder = SceneBuilder()
+    cfg = GeneratorConfig(res=res)
+    specs = [sample_scene(cfg, CALIBRATION_SEED, i) for i in range(CALIBRATION_SCENES)]
+    refs = []
+    for spec in specs:
+        ref_spec = dataclasses.replace(spec, render=dataclasses.replace(
+            spec.render, sampler="independent", spp=REFERENCE_SPP, seed=spec.render.seed + 99))
+        refs.append(builder.render(ref_spec))
+    rows = {}
+    for sampler, counts in EXACT_SPP.items():
+        for spp in counts:
+            errs, times = [], []
+            for spec, ref in zip(specs, refs):
+                s = dataclasses.replace(spec, render=dataclasses.replace(spec.render, sampler=sampler, spp=spp))
+                template = builder.template_for(s)
+                template.render(spp, 1)  # warm: kernels compiled, caches hot
+                t0 = time.perf_counter()
+                image = template.render(spp, s.render.seed)
+                times.append(time.perf_counter() - t0)
+                errs.append(noise.relative_rmse(image, ref))
+            rows[sampler, spp] = (float(np.mean(errs)), float(np.median(times)))
+    print(f"# equal error: {CALIBRATION_SCENES} default scenes, {res}x{res}, depth {cfg.max_depth}, "
+          f"reference {REFERENCE_SPP} spp independent; relative RMSE (mean), render s/image (median)")
+    print("| sampler | " + " | ".join(f"{n} spp" for n in EXACT_SPP["independent"]) + " |")
+    print("|---|" + "---|" * len(EXACT_SPP["independent"]))
+    for sampler, counts in EXACT_SPP.items():
+        cells = [f"{spp}: {rows[sampler, spp][0]:.4f}, {rows[sampler, spp][1]:.3f} s" for spp in counts]
+        print(f"| {sampler} | " + " | ".join(cells) + " |")
+    print(f"\n# to reach relative RMSE <= {target}:")
+    print("| sampler | spp | relative RMSE | render s/image |")
+    print("|---|---|---|---|")
+    for sampler, counts in EXACT_SPP.items():
+        hit = next((spp for spp in counts if rows[sampler, spp][0] <= target), None)
+        if hit is None:
+            print(f"| {sampler} | > {counts[-1]} | - | - |")
+        else:
+            print(f"| {sampler} | {hit} | {rows[sampler, hit][0]:.4f} | {rows[sampler, hit][1]:.3f} |")
+    print("\n# relight.scene.noise.CALIBRATION (measured above)")
+    for sampler in noise.CALIBRATION:
+        pairs = ", ".join(f"({spp}, {rows[sampler, spp][0]:.4f})" for spp in EXACT_SPP[sampler])
+        print(f'    "{sampler}": ({pairs}),')
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--n", type=int, default=24, help="images per measurement")
+    ap.add_argument("--n", type=int, default=48, help="images per measurement")
     ap.add_argument("--res", type=int, default=128)
-    ap.add_argument("--spp", type=int, default=64)
+    ap.add_argument("--spp", type=int, default=None, help="samples per pixel (default: from the target)")
+    ap.add_argument("--target-rmse", type=float, default=noise.DEFAULT_TARGET_RMSE)
     ap.add_argument("--workers", type=int, default=2, help="also measure this many worker processes (1: skip)")
+    ap.add_argument("--calibrate", action=argparse.BooleanOptionalAction, default=True,
+                    help="print the equal-error sampler table first (default on)")
     args = ap.parse_args()
     backend.init()
-    cfg = GeneratorConfig(res=args.res, spp=args.spp)
+    if args.calibrate:
+        equal_error_table(args.res, args.target_rmse)
+        print()
+    cfg = GeneratorConfig(res=args.res, spp=args.spp, target_rmse=args.target_rmse)
     seed = 12345
     with tempfile.TemporaryDirectory() as tmp:
         # warm-up: every room structure (n_walls 4..8) once, other images than the measured ones
@@ -66,8 +143,8 @@ def main() -> int:
             par = generate(os.path.join(tmp, "par"), args.n, seed=seed, cfg=cfg, progress=False,
                            workers=args.workers)
 
-    print(f"# generation benchmark: {args.n} images, {args.res}x{args.res}, {args.spp} spp, "
-          f"path depth {cfg.max_depth}; {backend.describe()}")
+    print(f"# generation benchmark: {args.n} images, {args.res}x{args.res}, {cfg.sampler} "
+          f"{cfg.render_spp} spp, path depth {cfg.max_depth}; {backend.describe()}")
     print("| way | images/s | s/image | render s/image | total / render |")
     print("|---|---|---|---|---|")
     print(f"| template (1 process) | {stats.images_per_s:.2f} | {stats.total_s / args.n:.3f} | "
@@ -78,7 +155,14 @@ def main() -> int:
         print(f"| template ({args.workers} processes) | {par.images_per_s:.2f} | {par.total_s / args.n:.3f} | "
               f"- | - |")
     print(f"\nnaive / template time ratio: {naive_s / stats.total_s:.2f}")
-    print(f"targets: >= 3.5 images/s at 128x128/64 spp; total/render <= 1.15")
+    print(f"targets: >= 12 images/s at the default noise target; total/render <= 1.10")
+    try:
+        import bench_cycles  # noqa: PLC0415 - optional: needs the Blender environment
+    except ImportError:
+        bench_cycles = None
+    if bench_cycles is not None and hasattr(bench_cycles, "main"):
+        print()
+        bench_cycles.main([])
     return 0
 
 

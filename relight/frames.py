@@ -134,21 +134,43 @@ def encode_y(pan_l_deg, tilt_l_deg, rgb, tilt_c_deg, pan_c_deg=0.0) -> np.ndarra
                            np.broadcast_to(rgb, lead + (3,))], axis=-1)
 
 
+def fold_over_zenith(pan_deg, tilt_deg):
+    """The same direction with tilt in [-90, 90]: a tilt past the zenith (> 90) becomes
+    ``180 - tilt`` seen from the other side (pan + 180), and past the nadir likewise.
+
+    >>> fold_over_zenith(10.0, 108.8)
+    (190.0, 71.2)
+    >>> fold_over_zenith(350.0, -100.0)
+    (170.0, -80.0)
+    """
+    pan = np.asarray(pan_deg, dtype=np.float64)
+    tilt = wrap180(np.asarray(tilt_deg, dtype=np.float64))
+    over, under = tilt > 90.0, tilt < -90.0
+    flip = over | under
+    tilt = np.where(over, 180.0 - tilt, np.where(under, -180.0 - tilt, tilt))
+    pan = wrap360(np.where(flip, pan + 180.0, pan))
+    if pan.ndim == 0:
+        return round(float(pan), 10), round(float(tilt), 10)
+    return pan, tilt
+
+
 def decode_y(y, tilt_c_deg, pan_c_deg=0.0):
     """Decode a 7-vector (``(..., 7)``) into light angles and colour.
 
     The sin/cos pairs need not be normalised (a network's raw output is fine).
 
     Returns:
-        ``(pan_l_deg in [0, 360), tilt_l_deg, rgb (..., 3))``. With ``pan_c = 0``
-        the returned pan equals ``pan_rel``. ``tilt_l_deg`` is not clamped.
+        ``(pan_l_deg in [0, 360), tilt_l_deg in [-90, 90], rgb (..., 3))``. With
+        ``pan_c = 0`` the returned pan equals ``pan_rel``. A tilt past the zenith is
+        folded over it (:func:`fold_over_zenith`), as the conventions require.
     """
     y = np.asarray(y, dtype=np.float64)
     if y.shape[-1] != Y_SIZE:
         raise ValueError(f"expected a 7-vector (last axis 7), got shape {y.shape}")
-    pan_l = wrap360(pan_c_deg - np.degrees(np.arctan2(y[..., 0], y[..., 1])))
+    pan_l = pan_c_deg - np.degrees(np.arctan2(y[..., 0], y[..., 1]))
     tilt_l = np.asarray(tilt_c_deg, dtype=np.float64) - np.degrees(np.arctan2(y[..., 2], y[..., 3]))
-    return pan_l, tilt_l, y[..., 4:7]
+    pan_l, tilt_l = fold_over_zenith(pan_l, tilt_l)
+    return np.asarray(pan_l, dtype=np.float64), np.asarray(tilt_l, dtype=np.float64), y[..., 4:7]
 
 
 def camera_position(tilt_c_deg, r_c_m=20.0, pan_c_deg=0.0) -> np.ndarray:

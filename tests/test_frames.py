@@ -102,3 +102,25 @@ def test_tangent_basis_is_the_derivative_of_direction():
         assert np.allclose(d_tilt, e_tilt, atol=1e-7)
         assert abs(e_pan @ frames.direction(pan, tilt)) < TOL and abs(e_tilt @ e_pan) < TOL
     assert np.allclose(frames.tangent_basis(0.0, 0.0)[1], [0, 0, 1])
+
+
+@pytest.mark.parametrize("pan,tilt,want_pan,want_tilt", [
+    (10.0, 108.8, 190.0, 71.2), (200.0, 90.0, 200.0, 90.0), (0.0, 180.0, 180.0, 0.0),
+    (350.0, -100.0, 170.0, -80.0), (45.0, 30.0, 45.0, 30.0), (90.0, 270.0, 90.0, -90.0)])
+def test_fold_over_zenith_keeps_the_direction(pan, tilt, want_pan, want_tilt):
+    p, t = frames.fold_over_zenith(pan, tilt)
+    assert (p, t) == pytest.approx((want_pan, want_tilt), abs=1e-9)
+    assert -90.0 <= t <= 90.0
+    assert np.allclose(frames.direction(p, t), frames.direction(pan, tilt), atol=1e-12)
+
+
+def test_decode_y_folds_tilt_over_the_zenith():
+    """A light 20 deg past the zenith on the camera side decodes as tilt 70 from behind."""
+    y = frames.encode_y(0.0, 110.0, np.array([1.0, 1.0, 1.0]), 45.0)
+    pan, tilt, _ = frames.decode_y(y, 45.0)
+    assert float(tilt) == pytest.approx(70.0) and float(pan) == pytest.approx(180.0)
+    ys = np.stack([frames.encode_y(p, t, np.ones(3), 30.0) for p, t in [(10, 100), (200, 60), (300, -95)]])
+    pans, tilts, _ = frames.decode_y(ys, 30.0)
+    assert np.all(np.abs(tilts) <= 90.0)
+    for (p, t), pd, td in zip([(10, 100), (200, 60), (300, -95)], pans, tilts):
+        assert np.allclose(frames.direction(pd, td), frames.direction(p, t), atol=1e-9)

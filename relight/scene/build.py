@@ -45,6 +45,7 @@ class TemplateKey:
     max_depth: int
     texture_res: int
     slots: tuple[tuple[int, int], ...]  # (vertex count, face count) per object slot
+    sampler: str = "independent"        # Mitsuba sampler plugin (render.sampler)
 
 
 def object_mesh(obj: ObjectSpec) -> shapes.Mesh:
@@ -111,7 +112,7 @@ def template_key(spec: SceneSpec, meshes: list[shapes.Mesh]) -> TemplateKey:
     while len(slots) < N_OBJECT_SLOTS:
         slots.append(slots[0] if slots else (shapes.DEFAULT_NU * shapes.DEFAULT_NV, 0))
     return TemplateKey(max(N_WALL_SLOTS, spec.room.n_walls), spec.render.res, spec.render.max_depth,
-                       spec.room.texture_res, tuple(slots))
+                       spec.room.texture_res, tuple(slots), spec.render.sampler)
 
 
 def wall_to_world(k: int, n_walls: int, inradius_m: float, height_m: float,
@@ -167,7 +168,7 @@ class SceneTemplate:
                 "to_world": mi.ScalarTransform4f().look_at(origin=[20, 0, 5], target=[0, 0, 0], up=[0, 0, 1]),
                 "film": {"type": "hdrfilm", "width": key.res, "height": key.res,
                          "rfilter": {"type": "box"}, "pixel_format": "rgb"},
-                "sampler": {"type": "independent", "sample_count": 1},
+                "sampler": {"type": key.sampler, "sample_count": 1},
             },
             "light": {"type": "point", "position": [0.0, 0.0, 30.0],
                       "intensity": {"type": "rgb", "value": [1.0, 1.0, 1.0]}},

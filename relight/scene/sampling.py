@@ -21,8 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from relight import colour
-from relight.scene import shapes, textures
-from relight.scene.spec import (CameraSpec, LightSpec, ObjectSpec, RenderSpec, RoomSpec,
+from relight.scene import albedo, noise, shapes, textures
+from relight.scene.spec import (SAMPLERS, CameraSpec, LightSpec, ObjectSpec, RenderSpec, RoomSpec,
                                 SceneSpec)
 
 
@@ -34,7 +34,10 @@ class ConfigError(ValueError):
 class GeneratorConfig:
     """Settings of the SID2-style generator (units in the names; ranges inclusive)."""
     res: int = 128
-    spp: int = 64
+    spp: int | None = None          # samples per pixel; None: the fewest reaching target_rmse
+    target_rmse: float = noise.DEFAULT_TARGET_RMSE   # relative RMSE target (used when spp is None)
+    sampler: str = noise.DEFAULT_SAMPLER             # Mitsuba sampler plugin
+    colour_prior: str = albedo.DEFAULT_PRIOR         # surface-colour prior (relight.scene.albedo)
     max_depth: int = 4
     fov_deg: float = 40.0
     camera_r_m: float = 20.0
@@ -62,9 +65,19 @@ class GeneratorConfig:
             lo, hi = getattr(self, name)
             if not (lo_min <= lo <= hi <= hi_max):
                 raise ConfigError(f"{name}: expected {lo_min} <= lo <= hi <= {hi_max}, got {(lo, hi)}")
-        for name in ("res", "spp", "max_depth", "texture_res"):
+        for name in ("res", "max_depth", "texture_res") + (("spp",) if self.spp is not None else ()):
             if not isinstance(getattr(self, name), int) or getattr(self, name) < 1:
                 raise ConfigError(f"{name}: expected a positive integer, got {getattr(self, name)!r}")
+        if self.sampler not in SAMPLERS:
+            raise ConfigError(f"sampler: expected one of {', '.join(SAMPLERS)}, got {self.sampler!r}")
+        if self.colour_prior not in albedo.PRIORS:
+            raise ConfigError(f"colour_prior: expected one of {', '.join(albedo.PRIORS)}, "
+                              f"got {self.colour_prior!r}")
+        if self.spp is None:
+            try:
+                noise.spp_for_target(self.target_rmse, self.sampler)
+            except ValueError as exc:
+                raise ConfigError(str(exc)) from None
         rng_ok("camera_tilt_deg", -89, 89)
         rng_ok("light_r_m", 0.1, 1e4)
         rng_ok("light_tilt_deg", 0, 90)
@@ -103,6 +116,12 @@ class GeneratorConfig:
         data = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
         data.update({k: v for k, v in overrides.items() if v is not None})
         return cls(**data)
+
+    @property
+    def render_spp(self) -> int:
+        """Samples per pixel of every image: ``spp``, or the fewest that reach
+        ``target_rmse`` with ``sampler`` (:func:`relight.scene.noise.spp_for_target`)."""
+        return self.spp if self.spp is not None else noise.spp_for_target(self.target_rmse, self.sampler)
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
@@ -169,13 +188,14 @@ def sample_scene(cfg: GeneratorConfig, dataset_seed: int, index: int) -> SceneSp
                       cct_k=float(cct_k), duv=float(duv))
 
     n_walls = int(rng.integers(cfg.n_walls[0], cfg.n_walls[1] + 1))
+    prior = albedo.scene_prior(rng, cfg.colour_prior)
     room = RoomSpec(
         n_walls=n_walls,
         inradius_m=float(np.round(rng.uniform(*cfg.room_inradius_m), 3)),
         height_m=cfg.wall_height_m,
         rotation_deg=float(np.round(rng.uniform(0.0, 360.0 / n_walls), 3)),
-        wall_textures=tuple(textures.sample_texture_params(rng) for _ in range(n_walls)),
-        floor_texture=textures.sample_texture_params(rng),
+        wall_textures=tuple(textures.sample_texture_params(rng, prior=prior) for _ in range(n_walls)),
+        floor_texture=textures.sample_texture_params(rng, prior=prior),
         texture_res=cfg.texture_res)
 
     families = cfg.families or shapes.FAMILIES
@@ -196,9 +216,9 @@ def sample_scene(cfg: GeneratorConfig, dataset_seed: int, index: int) -> SceneSp
             position_m=(float(np.round(centre[0], 4)), float(np.round(centre[1], 4))),
             yaw_deg=float(np.round(rng.uniform(0.0, 360.0), 3)),
             size_m=size,
-            reflectance=tuple(float(np.round(c, 4)) for c in rng.uniform(0.1, 0.85, 3)),
+            reflectance=albedo.object_reflectance(rng, prior),
             roughness=float(np.round(rng.uniform(0.0, 1.0), 4))))
-    render = RenderSpec(res=cfg.res, spp=cfg.spp, max_depth=cfg.max_depth,
-                        seed=int(rng.integers(0, 2 ** 31)))
+    render = RenderSpec(res=cfg.res, spp=cfg.render_spp, max_depth=cfg.max_depth,
+                        seed=int(rng.integers(0, 2 ** 31)), sampler=cfg.sampler)
     return SceneSpec(id=f"{index:06d}", camera=camera, light=light, room=room,
-                     objects=tuple(objects), render=render)
+                     objects=tuple(objects), render=render, colour_prior=prior)

@@ -150,13 +150,23 @@ class ObjectSpec:
             raise SceneFileError("object: roughness and reflectance in [0, 1], size_m > 0 expected")
 
 
+SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler")
+LEGACY_SAMPLER = "independent"   # scene files written before ``render.sampler`` existed
+
+
 @dataclass(frozen=True)
 class RenderSpec:
-    """Image size (square, pixels), samples per pixel, path depth and sampler seed."""
+    """Image size (square, pixels), samples per pixel, path depth, sampler seed and
+    Mitsuba sampler plugin (one of :data:`SAMPLERS`).
+
+    A file without ``sampler`` was written when relight always used ``independent``:
+    reading it gives that sampler, so old files re-render bit for bit.
+    """
     res: int = 128
     spp: int = 64
     max_depth: int = 4
     seed: int = 0
+    sampler: str = LEGACY_SAMPLER
 
     def __post_init__(self):
         for name in ("res", "spp", "max_depth", "seed"):
@@ -165,6 +175,8 @@ class RenderSpec:
                 raise SceneFileError(f"render.{name}: expected a positive integer, got {v!r}")
         if self.seed >= 2 ** 32:
             raise SceneFileError("render.seed must fit in 32 bits")
+        if self.sampler not in SAMPLERS:
+            raise SceneFileError(f"render.sampler: expected one of {', '.join(SAMPLERS)}, got {self.sampler!r}")
 
 
 @dataclass(frozen=True)
@@ -176,12 +188,15 @@ class SceneSpec:
     room: RoomSpec
     objects: tuple[ObjectSpec, ...]
     render: RenderSpec = field(default_factory=RenderSpec)
+    colour_prior: str | None = None   # surface-colour prior that drew the albedos (metadata)
     format: str = SCENE_FORMAT
 
     def __post_init__(self):
         if self.format != SCENE_FORMAT:
             raise SceneFileError(f"unknown scene format {self.format!r}, expected {SCENE_FORMAT!r}")
         object.__setattr__(self, "objects", tuple(self.objects))
+        if self.colour_prior is not None and not isinstance(self.colour_prior, str):
+            raise SceneFileError(f"colour_prior: expected a name or null, got {self.colour_prior!r}")
 
     @property
     def pan_rel_deg(self) -> float:
@@ -227,6 +242,7 @@ class SceneSpec:
                                             "reflectance": tuple(o["reflectance"])})
                               for o in d["objects"]),
                 render=RenderSpec(**d.get("render", {})),
+                colour_prior=d.get("colour_prior"),
             )
         except (KeyError, TypeError) as exc:
             raise SceneFileError(f"malformed scene description: {exc}") from None

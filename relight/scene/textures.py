@@ -6,7 +6,8 @@ Conventions
   of **linear** RGB albedo (unitless reflectance) with values in [0, 1]; row 0
   is the top of the image (v = 1 - row/size if used as a texture), column 0 the
   left edge (u = col/size).
-* Sampled colours are linear RGB in [ALBEDO_MIN, ALBEDO_MAX] = [0.05, 0.9].
+* Sampled colours are linear RGB in [ALBEDO_MIN, ALBEDO_MAX] = [0.05, 0.9], drawn
+  from a surface-colour prior (:mod:`relight.scene.albedo`).
 * Feature sizes are given in "features across the texture" (e.g. ``cells``
   checker squares per side), always a few to ~20, so patterns survive being
   seen small.  Pattern scales are independent of ``size`` (resolution).
@@ -23,31 +24,9 @@ import math
 
 import numpy as np
 
+from relight.scene.albedo import ALBEDO_MAX, ALBEDO_MIN, texture_colours
+
 KINDS: tuple[str, ...] = ("checker", "stripes", "patches", "noise", "gradient", "dots", "tiles")
-ALBEDO_MIN = 0.05
-ALBEDO_MAX = 0.9
-
-
-# --------------------------------------------------------------------------- colours
-def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
-
-
-def _hsv_to_rgb(h: np.ndarray, s: np.ndarray, v: np.ndarray) -> np.ndarray:
-    k = (np.array([5.0, 3.0, 1.0]) + h[:, None] * 6.0) % 6.0
-    return v[:, None] - v[:, None] * s[:, None] * np.clip(np.minimum(k, 4.0 - k), 0.0, 1.0)
-
-
-def _sample_colours(rng: np.random.Generator, n: int) -> list[list[float]]:
-    """n varied linear-RGB albedos in [ALBEDO_MIN, ALBEDO_MAX]; colours 0 and 1 contrast."""
-    hue = (rng.random() + rng.normal(0.0, 0.1, n)
-           + (rng.random(n) < 0.4) * rng.uniform(0.2, 0.8, n)) % 1.0
-    sat = rng.uniform(0.0, 0.75, n)
-    val = rng.uniform(0.25, 1.0, n)
-    if n > 1 and abs(val[0] - val[1]) < 0.25:
-        val[1] = val[0] - 0.35 if val[0] > 0.6 else val[0] + 0.35
-    lin = ALBEDO_MIN + (ALBEDO_MAX - ALBEDO_MIN) * _srgb_to_linear(_hsv_to_rgb(hue, sat, val))
-    return [[round(float(x), 4) for x in c] for c in np.clip(lin, ALBEDO_MIN, ALBEDO_MAX)]
 
 
 # --------------------------------------------------------------------------- params
@@ -81,42 +60,46 @@ def _colours(params: dict, n_min: int, n_max: int) -> np.ndarray:
     return col.astype(np.float32)
 
 
-def sample_texture_params(rng: np.random.Generator, kind: str | None = None) -> dict:
-    """Random JSON-serialisable texture params; ``kind`` None picks one of KINDS."""
+def sample_texture_params(rng: np.random.Generator, kind: str | None = None, prior: str = "hsv") -> dict:
+    """Random JSON-serialisable texture params; ``kind`` None picks one of KINDS;
+    colours from the surface-colour ``prior`` (:mod:`relight.scene.albedo`)."""
     if kind is None:
         kind = str(rng.choice(KINDS))
     if kind not in KINDS:
         raise ValueError(f"unknown texture kind {kind!r}, expected one of {KINDS}")
     p: dict = {"kind": kind, "seed": int(rng.integers(0, 2**31 - 1))}
+
+    def _colours_of(n: int) -> list[list[float]]:
+        return texture_colours(rng, n, prior)
     angle = float(rng.choice([0.0, 0.0, 90.0, rng.uniform(0.0, 180.0)]))
     if kind == "checker":
-        p.update(cells=int(rng.integers(2, 13)), angle=angle, colors=_sample_colours(rng, 2))
+        p.update(cells=int(rng.integers(2, 13)), angle=angle, colors=_colours_of(2))
     elif kind == "stripes":
         p.update(count=int(rng.integers(2, 17)), angle=angle, duty=float(rng.uniform(0.2, 0.8)),
-                 colors=_sample_colours(rng, int(rng.integers(2, 4))))
+                 colors=_colours_of(int(rng.integers(2, 4))))
     elif kind == "patches":
         p.update(count=int(rng.integers(4, 21)), variation=float(rng.uniform(0.0, 0.15)),
-                 colors=_sample_colours(rng, int(rng.integers(2, 6))))
+                 colors=_colours_of(int(rng.integers(2, 6))))
     elif kind == "noise":
         scale = int(rng.integers(2, 9))  # finest octave has at most 32 lattice cells across
         p.update(scale=scale, octaves=int(rng.integers(1, 2 + int(math.log2(32 // scale)))),
                  persistence=float(rng.uniform(0.35, 0.65)),
-                 colors=_sample_colours(rng, int(rng.integers(2, 4))))
+                 colors=_colours_of(int(rng.integers(2, 4))))
     elif kind == "gradient":
         p.update(mode=str(rng.choice(["linear", "radial"])), angle=float(rng.uniform(0.0, 360.0)),
                  center=[float(x) for x in rng.uniform(0.0, 1.0, 2)],
-                 colors=_sample_colours(rng, int(rng.integers(2, 4))))
+                 colors=_colours_of(int(rng.integers(2, 4))))
     elif kind == "dots":
         radius = float(rng.uniform(0.15, 0.4))
         p.update(cells=int(rng.integers(3, 13)), radius=radius,
                  jitter=float(rng.uniform(0.0, 0.45 - radius)),
-                 colors=_sample_colours(rng, int(rng.integers(2, 4))))
+                 colors=_colours_of(int(rng.integers(2, 4))))
     else:
         rows = int(rng.integers(2, 13))
         p.update(rows=rows, cols=int(np.clip(round(rows * rng.uniform(0.3, 1.5)), 1, 12)),
                  offset=float(rng.choice([0.0, 0.5])), grout=float(rng.uniform(0.03, 0.12)),
                  variation=float(rng.uniform(0.0, 0.15)),
-                 colors=_sample_colours(rng, int(rng.integers(2, 5))))
+                 colors=_colours_of(int(rng.integers(2, 5))))
     return p
 
 

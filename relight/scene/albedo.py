@@ -1,0 +1,113 @@
+"""Surface-colour priors: the albedos of walls, floor textures and objects.
+
+In a scene lit by one light, a diffuse surface shows ``albedo x light colour``, so how
+well the light's colour can be recovered from an image depends on the prior over
+surface colours. The prior is a named generator setting (``--colour-prior``),
+recorded in the dataset card, every scene file and every manifest record:
+
+``hsv``
+    relight's first prior: texture colours of one texture share a random hue
+    (HSV, saturation up to 0.75, value 0.25-1 in sRGB, then linearised); object
+    reflectances uniform in [0.1, 0.85] per channel.
+``munsell``
+    measured real surfaces: chips of the Munsell renotation "real" set (Newhall,
+    Nickerson & Judd 1943; 2,734 colours, as shipped by colour-science), xyY under
+    illuminant C, adapted to D65 (Bradford) and converted to linear Rec.709; chips
+    outside the RGB gamut are dropped. Every colour, texture or object, is one chip
+    drawn uniformly, independently of the others.
+``mixture``
+    each scene draws ``hsv`` or ``munsell`` with equal odds (the scene records which).
+
+All albedos are linear RGB in [ALBEDO_MIN, ALBEDO_MAX] (textures) or [0, 1]
+(objects); every random draw comes from the caller's ``numpy.random.Generator``.
+"""
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+PRIORS: tuple[str, ...] = ("hsv", "munsell", "mixture")
+DEFAULT_PRIOR = "hsv"
+ALBEDO_MIN = 0.05          # texture albedo range (linear)
+ALBEDO_MAX = 0.9
+OBJECT_RANGE = (0.1, 0.85)  # the hsv prior's object reflectance range, per channel
+MUNSELL_Y_RANGE = (0.03, 0.9)  # luminous reflectance of the Munsell chips kept
+
+
+def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    from relight.colour import srgb_decode
+    return srgb_decode(c)
+
+
+def _hsv_to_rgb(h: np.ndarray, s: np.ndarray, v: np.ndarray) -> np.ndarray:
+    k = (np.array([5.0, 3.0, 1.0]) + h[:, None] * 6.0) % 6.0
+    return v[:, None] - v[:, None] * s[:, None] * np.clip(np.minimum(k, 4.0 - k), 0.0, 1.0)
+
+
+def _round(colours: np.ndarray) -> list[list[float]]:
+    return [[round(float(x), 4) for x in c] for c in colours]
+
+
+@functools.lru_cache(maxsize=1)
+def munsell_albedos() -> np.ndarray:
+    """``(n, 3)`` linear Rec.709 reflectances of the in-gamut Munsell "real" chips
+    with luminous reflectance in :data:`MUNSELL_Y_RANGE`."""
+    import colour
+    from colour.notation.datasets import MUNSELL_COLOURS_REAL
+    xyY = np.array([c[1] for c in MUNSELL_COLOURS_REAL], dtype=np.float64)
+    xyY[:, 2] /= 100.0
+    xyz_c = colour.xyY_to_XYZ(xyY)
+    observer = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]
+    xyz_c_white = colour.xy_to_XYZ(observer["C"])
+    xyz_d65_white = colour.xy_to_XYZ(observer["D65"])
+    xyz = colour.chromatic_adaptation(xyz_c, xyz_c_white, xyz_d65_white, method="Von Kries",
+                                      transform="Bradford")
+    rgb = colour.XYZ_to_RGB(xyz, colour.RGB_COLOURSPACES["sRGB"], apply_cctf_encoding=False)
+    keep = (rgb.min(1) >= 0.0) & (rgb.max(1) <= 1.0) \
+        & (xyY[:, 2] >= MUNSELL_Y_RANGE[0]) & (xyY[:, 2] <= MUNSELL_Y_RANGE[1])
+    return rgb[keep]
+
+
+def texture_colours(rng: np.random.Generator, n: int, prior: str = "hsv") -> list[list[float]]:
+    """``n`` linear-RGB albedos for one texture; colours 0 and 1 contrast in value."""
+    if prior == "hsv":
+        hue = (rng.random() + rng.normal(0.0, 0.1, n)
+               + (rng.random(n) < 0.4) * rng.uniform(0.2, 0.8, n)) % 1.0
+        sat = rng.uniform(0.0, 0.75, n)
+        val = rng.uniform(0.25, 1.0, n)
+        if n > 1 and abs(val[0] - val[1]) < 0.25:
+            val[1] = val[0] - 0.35 if val[0] > 0.6 else val[0] + 0.35
+        lin = ALBEDO_MIN + (ALBEDO_MAX - ALBEDO_MIN) * _srgb_to_linear(_hsv_to_rgb(hue, sat, val))
+        return _round(np.clip(lin, ALBEDO_MIN, ALBEDO_MAX))
+    if prior == "munsell":
+        table = munsell_albedos()
+        idx = rng.integers(0, len(table), n)
+        if n > 1:  # contrast: colour 1 at least 2x lighter or darker than colour 0
+            lum = table @ np.array([0.2126, 0.7152, 0.0722])
+            for _ in range(50):
+                a, b = lum[idx[0]], lum[idx[1]]
+                if max(a, b) >= 2.0 * min(a, b):
+                    break
+                idx[1] = rng.integers(0, len(table))
+        return _round(np.clip(table[idx], ALBEDO_MIN, ALBEDO_MAX))
+    raise ValueError(f"unknown colour prior {prior!r}; valid: hsv, munsell")
+
+
+def object_reflectance(rng: np.random.Generator, prior: str = "hsv") -> tuple[float, float, float]:
+    """Linear-RGB reflectance of one object."""
+    if prior == "hsv":
+        return tuple(float(np.round(c, 4)) for c in rng.uniform(*OBJECT_RANGE, 3))
+    if prior == "munsell":
+        table = munsell_albedos()
+        return tuple(float(np.round(c, 4)) for c in table[int(rng.integers(0, len(table)))])
+    raise ValueError(f"unknown colour prior {prior!r}; valid: hsv, munsell")
+
+
+def scene_prior(rng: np.random.Generator, prior: str) -> str:
+    """The concrete prior of one scene (``mixture`` draws one; others draw nothing)."""
+    if prior == "mixture":
+        return ("hsv", "munsell")[int(rng.integers(0, 2))]
+    if prior not in PRIORS:
+        raise ValueError(f"unknown colour prior {prior!r}; valid: {', '.join(PRIORS)}")
+    return prior
