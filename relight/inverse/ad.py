@@ -200,6 +200,9 @@ def _v3(mi, a: np.ndarray):
 
 
 def _np3(x) -> np.ndarray:
+    """``(n, 3)`` float64 of a Dr.Jit 3-vector (one kernel for the three components)."""
+    _, dr = _mi_dr()
+    dr.eval(x)
     return np.stack([np.array(x[i], dtype=np.float64) for i in range(3)], axis=-1)
 
 
@@ -240,7 +243,9 @@ def boundary_derivative(scene, cam: Pinhole, occluders: Occluders, p: np.ndarray
     blocked = scene.ray_test(ray_l)
     # 2. past the edge: the receiver point x on the shadow boundary
     si_x = scene.ray_intersect(mi.Ray3f(_p3(mi, q + RAY_OFFSET_M * d), _v3(mi, d)))
-    ok = ~np.array(blocked, dtype=bool) & np.array(si_x.is_valid(), dtype=bool)
+    valid_x = si_x.is_valid()
+    dr.eval(blocked, valid_x, si_x.p)
+    ok = ~np.array(blocked, dtype=bool) & np.array(valid_x, dtype=bool)
     x = _np3(si_x.p)
     # 3. the camera sees x, inside the image
     u, depth = cam.project(x)
@@ -249,7 +254,9 @@ def boundary_derivative(scene, cam: Pinhole, occluders: Occluders, p: np.ndarray
     dist_c = np.linalg.norm(to_x, axis=1)
     ray_c = mi.Ray3f(_p3(mi, np.broadcast_to(cam.centre, x.shape)), _v3(mi, to_x / dist_c[:, None]))
     si_c = scene.ray_intersect(ray_c)
-    ok &= np.array(si_c.is_valid(), dtype=bool)
+    valid_c = si_c.is_valid()
+    dr.eval(si_c, valid_c)
+    ok &= np.array(valid_c, dtype=bool)
     ok &= np.abs(np.array(si_c.t, dtype=np.float64) - dist_c) < CAMERA_HIT_REL_TOL * dist_c
     # 4. the jump: unshadowed direct radiance at x toward the camera
     to_p = p - x
@@ -322,7 +329,7 @@ class ShadingAD:
     def visibility(self, p: np.ndarray) -> list:
         """Shadow-ray masks toward the light at ``p`` (not differentiated)."""
         mi, dr = _mi_dr()
-        pt = mi.Point3f(*[float(c) for c in p])
+        pt = mi.Point3f(*[dr.opaque(mi.Float, float(c)) for c in p])   # opaque: no recompilation
         masks = []
         for si, _, active, _ in self.vertices:
             m = active & ~self.scene.ray_test(si.spawn_ray_to(pt), active)
@@ -346,8 +353,9 @@ class ShadingAD:
 
     def pixel_mean(self, values) -> np.ndarray:
         """Box-filter pixel means ``(res, res, 3)`` of per-sample colours."""
-        arr = _np3(values)
-        return arr.reshape(self.res * self.res, self.spp, 3).mean(axis=1).reshape(self.res, self.res, 3)
+        _, dr = _mi_dr()
+        arr = _np3(dr.block_sum(values, self.spp) / self.spp)
+        return arr.reshape(self.res, self.res, 3)
 
     def jacobian(self, pan_deg: float, tilt_deg: float, r_m: float, n_par: int):
         """``(image (res, res, 3), d image / d theta (res, res, 3, n_par))`` of the direct
@@ -357,14 +365,17 @@ class ShadingAD:
         d = frames.direction(pan_deg, tilt_deg)
         e_pan, e_tilt = frames.tangent_basis(pan_deg, tilt_deg)
         masks = self.visibility(r_m * d)
+
+        def vec(v):  # an opaque constant: a new light position must not recompile the kernels
+            return mi.Vector3f(*[dr.opaque(mi.Float, float(c)) for c in v])
+
         cols, image = [], None
         for j in range(n_par):
-            theta = [mi.Float(0.0) for _ in range(3)]        # du_deg, dv_deg, dr_rel
+            theta = [dr.opaque(mi.Float, 0.0) for _ in range(3)]        # du_deg, dv_deg, dr_rel
             dr.enable_grad(theta[j])
             s = [theta[0] * DEG_RAD, theta[1] * DEG_RAD]
-            direction = mi.Vector3f(*[float(d[i]) + s[0] * float(e_pan[i]) + s[1] * float(e_tilt[i])
-                                      for i in range(3)])
-            radius = r_m * (1.0 + theta[2])
+            direction = vec(d) + s[0] * vec(e_pan) + s[1] * vec(e_tilt)
+            radius = dr.opaque(mi.Float, r_m) * (1.0 + theta[2])
             p = mi.Point3f(dr.normalize(direction) * radius)
             values = self.radiance(p, dr.square(radius), masks)
             dr.forward_from(theta[j])

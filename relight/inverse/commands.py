@@ -136,6 +136,9 @@ def add_commands(sub) -> None:
     v.add_argument("--time-budget", type=positive_float, default=None,
                    help="seconds per image (default 60)")
     v.add_argument("--fit-radius", action="store_true", help="also fit the light distance")
+    v.add_argument("--gradient", choices=("fd", "ad"), default="fd",
+                   help="Jacobian of each LM step: 'fd' central finite differences (default) or "
+                        "'ad' automatic differentiation with shadow-edge terms (relight.inverse.ad)")
     v.add_argument("--seed", type=int, default=None, help="sampler seed of the fit (default 1)")
     v.add_argument("--quiet", action="store_true", help="no progress bar")
     v.set_defaults(func=cmd_invert)
@@ -166,10 +169,10 @@ def cmd_invert(args) -> int:
         spec = load_scene(args.scene)
         jobs = [Job(spec.id, args.scene, args.image, spec.camera.tilt_deg)]
     overrides = {"max_iters": args.max_iters, "time_budget_s": args.time_budget, "seed": args.seed}
-    cfg = InvertConfig(fit_radius=args.fit_radius, **{k: v for k, v in overrides.items() if v is not None})
+    cfg = InvertConfig(fit_radius=args.fit_radius, gradient=args.gradient, **{k: v for k, v in overrides.items() if v is not None})
     results = invert_jobs(jobs, args.init, cfg, progress=not args.quiet, model_path=args.model)
     settings = {"init": args.init, "max_iters": cfg.max_iters, "time_budget_s": cfg.time_budget_s,
-                "fit_radius": cfg.fit_radius, "seed": cfg.seed,
+                "fit_radius": cfg.fit_radius, "seed": cfg.seed, "gradient": cfg.gradient,
                 "levels": [dataclasses.asdict(lv) for lv in cfg.levels]}
     write_predictions(args.out, [res.entry(job.id) for job, res in results],
                       dataset=os.path.abspath(args.data) if args.data else None,

@@ -86,6 +86,7 @@ class Level:
             raise InverseError(f"level: positive fd_step_deg, max_step_deg, tol_deg expected, got {self}")
 
 
+GRADIENTS = ("fd", "ad")  # central finite differences; automatic differentiation (relight.inverse.ad)
 MAX_REJECTIONS = 4  # trial steps per LM iteration before the level gives up (1 render each)
 
 DEFAULT_LEVELS = (
@@ -121,6 +122,7 @@ class InvertConfig:
     fit_radius: bool = False
     radius_fd_step: float = 0.03     # relative
     seed: int = 1
+    gradient: str = "fd"             # Jacobian estimator: "fd" or "ad" (relight.inverse.ad)
 
     def __post_init__(self):
         if not self.levels:
@@ -129,6 +131,8 @@ class InvertConfig:
             raise InverseError("max_iters >= 0, time_budget_s > 0 and grid_keep >= 1 expected")
         if not 0 < self.grid_pan_step_deg <= 180:
             raise InverseError(f"grid_pan_step_deg must be in (0, 180], got {self.grid_pan_step_deg}")
+        if self.gradient not in GRADIENTS:
+            raise InverseError(f"gradient must be one of {', '.join(GRADIENTS)}, got {self.gradient!r}")
 
 
 @dataclass
@@ -221,6 +225,7 @@ class LightRenderer:
         self.spec, self.builder = spec, builder
         self._templates: dict[int, object] = {}
         self.renders = 0
+        self._last = None  # (arguments, image) of the last render: the AD Jacobian reuses it
 
     def template(self, res: int):
         tpl = self._templates.get(res)
@@ -232,12 +237,17 @@ class LightRenderer:
     def render(self, pan_rel_deg: float, tilt_deg: float, r_m: float, res: int, spp: int,
                seed: int) -> np.ndarray:
         """``(res, res, 3)`` float64 linear render under a white light at (r, pan_rel, tilt)."""
+        key = (pan_rel_deg, tilt_deg, r_m, res, spp, seed)
+        if self._last is not None and self._last[0] == key:
+            return self._last[1].copy()
         tpl = self.template(res)
         pan_deg = self.spec.camera.pan_deg + pan_rel_deg
         tpl.set_light(frames.spherical_to_cartesian(r_m, pan_deg, tilt_deg), (r_m * r_m,) * 3)
         tpl.params.update()
         self.renders += 1
-        return tpl.render(spp, seed).astype(np.float64)
+        image = tpl.render(spp, seed).astype(np.float64)
+        self._last = (key, image)
+        return image.copy()
 
 
 # --- the optimiser -------------------------------------------------------------------
@@ -304,6 +314,10 @@ class _Run:
         self.iterations = 0
         self.trace: list[dict] = []
         self.stopped = "converged"
+        self.ad = None
+        if cfg.gradient == "ad":
+            from relight.inverse.ad import ADJacobian
+            self.ad = ADJacobian(renderer)
 
     def target(self, res: int) -> np.ndarray:
         if res not in self._targets:
@@ -343,7 +357,10 @@ class _Run:
             if self.out_of_budget():
                 break
             self.iterations += 1
-            jac = jacobian(self.renderer, self.target(level.res), s.pan, s.tilt, s.r, level.spp, seed, steps)
+            if self.ad is not None:
+                jac = self.ad.residual_jacobian(self.target(level.res), s.pan, s.tilt, s.r, level.spp, seed, n_par)
+            else:
+                jac = jacobian(self.renderer, self.target(level.res), s.pan, s.tilt, s.r, level.spp, seed, steps)
             jtj, grad = jac.T @ jac, jac.T @ res_vec
             accepted = False
             for _ in range(MAX_REJECTIONS):
