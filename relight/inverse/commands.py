@@ -120,7 +120,8 @@ def add_commands(sub) -> None:
     v = sub.add_parser("invert", help="recover the light by inverse rendering (scene known)",
                        description="Fit the light direction (pan/tilt on the sphere of the scene's "
                                    "light radius) and colour to an image by rendering its known scene "
-                                   "(finite-difference Levenberg-Marquardt, closed-form colour).")
+                                   "(Levenberg-Marquardt on finite-difference or, with --gradient ad, "
+                                   "automatic-differentiation Jacobians; closed-form colour).")
     src = v.add_mutually_exclusive_group(required=True)
     src.add_argument("--data", help="dataset folder (targets: the records' linear EXR images)")
     src.add_argument("--scene", help="scene file of a single image (with --image)")

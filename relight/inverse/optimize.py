@@ -26,6 +26,9 @@ in degrees, so the zenith is not singular). The FD Jacobian of the residual feed
 Levenberg-Marquardt step; each level keeps its sampler seed fixed, so the objective is
 deterministic and accepted steps always lower it. Cost: 4 renders per Jacobian (6 with
 the radius) + 1 per trial step, at 32-64 px and 8-32 samples per pixel.
+``InvertConfig(gradient="ad")`` (``relight invert --gradient ad``) builds the same
+Jacobian by automatic differentiation instead, the shadow-edge term included
+(:mod:`relight.inverse.ad`); ``benchmarks/bench_gradients.py`` compares the estimators.
 Measured by the benchmark (3-6 images of 128 px scenes, 5 deg off the light, against a
 64 px / 512 spp / h = 0.25 deg reference): the coarse-level FD gradient is within
 ~4-8 deg of the reference direction with a magnitude ratio ~1.0; Mitsuba's
