@@ -99,12 +99,17 @@ def cycles_max_bounces(max_depth: int) -> int:
 
 
 def relative_rmse(image: np.ndarray, reference: np.ndarray) -> float:
-    """``||image - reference||_2 / ||reference||_2`` over all pixels and channels."""
+    """``sqrt(mean((image - reference)^2)) / mean(reference)`` over all pixels and
+    channels: the generator's noise measure (``relight.scene.noise``), kept here so the
+    bpy side needs nothing else."""
     image = np.asarray(image, np.float64)
     reference = np.asarray(reference, np.float64)
     if image.shape != reference.shape:
         raise ValueError(f"images differ in shape: {image.shape} vs {reference.shape}")
-    return float(np.sqrt(np.sum((image - reference) ** 2) / max(np.sum(reference ** 2), 1e-30)))
+    mean = float(np.mean(reference))
+    if not mean > 0:
+        raise ValueError("reference image is black")
+    return float(np.sqrt(np.mean((image - reference) ** 2)) / mean)
 
 
 def rectangle_quad(to_world: np.ndarray, uv_scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
@@ -407,6 +412,10 @@ class CyclesWorker:
         self._proc = subprocess.Popen(cmd, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                       text=True, bufsize=1)
         self._n = 0
+        hello = self._proc.stdout.readline()
+        if not hello:
+            raise BlenderError(f"the Cycles worker did not start (exit code {self._proc.wait()})")
+        self.version = json.loads(hello)["bpy"]   # Blender version string
 
     def render(self, spec: SceneSpec, spp: int, seed: int) -> tuple[np.ndarray, float]:
         self._n += 1
@@ -446,6 +455,7 @@ def _worker(threads: int | None) -> int:
     from relight.scene.spec import load_scene
     protocol = os.fdopen(os.dup(1), "w", buffering=1)
     os.dup2(2, 1)  # anything Blender prints goes to stderr, never into the replies
+    protocol.write(json.dumps({"bpy": _bpy().app.version_string}) + "\n")
     for line in sys.stdin:
         if not line.strip():
             continue

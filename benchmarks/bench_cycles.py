@@ -1,0 +1,318 @@
+"""relight (Mitsuba) and Blender Cycles, the paper's renderer, on the same scene files.
+
+One run on fixed default scenes (``sample_scene(GeneratorConfig(res), 4242, i)``):
+
+(a) physics cross-check: converged Mitsuba against converged Cycles (``--ref-spp``
+    each): mean brightness ratio and relative RMSE per scene, three ways:
+    * as the scene files say;
+    * every object's roughness set to 0, so all surfaces are Lambert in both renderers:
+      what remains tests light units, geometry, textures, camera and path depth;
+    * Mitsuba's Oren-Nayar given the multiple-scattering term Cycles >= 4.3 adds
+      (transcribed from Cycles' ``bsdf_oren_nayar.h``; :func:`register_cycles_oren_nayar`):
+      what remains with the one known model difference removed.
+    The noise floor is what the two references' own noise alone gives.
+(b) equal error: relative RMSE of each renderer against its own converged reference at
+    each sample count (other seeds), render seconds per image, the sample count each
+    needs for a target error (log-log interpolation) and the time ratio there. Mitsuba
+    time is ``mi.render`` on a loaded template (as in generation); Cycles time is its
+    render call (scene sync, BVH build, sampling, EXR write; the Python scene build
+    is not counted). Both use all cores.
+
+Relative RMSE is the generator's: ``sqrt(mean((x - ref)^2)) / mean(ref)``. References
+are cached under ``--cache`` keyed by scene, renderer, code and spp. Skips (one line,
+exit 0) when the Blender environment (``scripts/setup_blender.sh``) is absent.
+
+Usage: python benchmarks/bench_cycles.py [--n 4] [--res 128] [--ref-spp 2048]
+                                         [--targets 0.03,0.015,0.0075] [--cache DIR]
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import hashlib
+import math
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+import numpy as np  # noqa: E402
+from tqdm import tqdm  # noqa: E402
+
+from relight import blender  # noqa: E402
+
+SCENE_SEED = 4242
+LADDER_SPP = (4, 16, 64, 256)   # exact for every Mitsuba sampler but "orthogonal"
+NOISY_SEED_OFFSET = 1000              # noisy renders use other seeds than the references
+DEFAULT_CACHE = os.path.join("~", "relight-data", "bench-cycles")
+EON_PLUGIN = "roughdiffuse_cycles"
+
+
+# --------------------------------------------------------------------------- Cycles' Oren-Nayar in Mitsuba
+def register_cycles_oren_nayar(mi, dr) -> None:
+    """Register :data:`EON_PLUGIN`: relight's ``roughdiffuse`` plus the energy-compensating
+    multiple-scattering term of Cycles >= 4.3 (``bsdf_oren_nayar.h``), as Cycles applies it::
+
+        f cos_o = rho [A + B s/t + E_ms (1 - E(cos_i)) (1 - E(cos_o))] cos_o,
+        E(mu) = pi A + B G(mu),  E_avg = pi A + (2 pi - 5.6) / 3 B,
+        E_ms = rho^2 E_avg / (pi (1 - E_avg) (1 - rho (1 - E_avg))),
+        G(mu) = sin(th) (th - 2/3 - sin(th) mu) + 2/3 tan(th) (1 - sin(th)^3),  mu = cos(th);
+
+    Cycles multiplies the whole bracket by the colour (closure weight), and uses plain
+    Lambert below roughness 1e-5. Only for this benchmark's cross-check.
+    """
+    if EON_PLUGIN in getattr(register_cycles_oren_nayar, "_done", ()):
+        return
+
+    def g_term(mu):
+        sin_t = dr.safe_sqrt(1.0 - mu * mu)
+        theta = dr.safe_acos(mu)
+        g = sin_t * (theta - 2.0 / 3.0 - sin_t * mu) + 2.0 / 3.0 * (sin_t / dr.maximum(mu, 1e-6)) * (1.0 - sin_t ** 3)
+        return dr.select(mu < 1e-6, (0.5 * math.pi - 2.0 / 3.0) - mu, g)
+
+    class CyclesOrenNayar(mi.BSDF):
+        def __init__(self, props):
+            mi.BSDF.__init__(self, props)
+            self.reflectance = props.get("reflectance", mi.ScalarColor3f(0.5))
+            if not isinstance(self.reflectance, mi.Texture):
+                self.reflectance = mi.load_dict({"type": "rgb", "value": self.reflectance})
+            self.roughness = mi.Float(float(props.get("roughness", 0.5)))
+            dr.make_opaque(self.roughness)
+            self.m_flags = mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide
+            self.m_components = [self.m_flags]
+
+        def _f(self, si, wo, active):
+            wi = si.wi
+            cos_i, cos_o = mi.Frame3f.cos_theta(wi), mi.Frame3f.cos_theta(wo)
+            sigma = dr.clip(self.roughness, 0.0, 1.0)
+            a = 1.0 / (math.pi + (0.5 * math.pi - 2.0 / 3.0) * sigma)
+            b = sigma * a
+            s = dr.dot(wi, wo) - cos_i * cos_o
+            t = dr.select(s > 0.0, dr.maximum(cos_i, cos_o), 1.0)
+            rho = dr.clip(self.reflectance.eval(si, active), 0.0, 1.0)
+            e_avg = a * math.pi + ((2.0 * math.pi - 5.6) / 3.0) * b
+            e_ms = rho * rho * (e_avg / dr.maximum(1.0 - e_avg, 1e-12)) / (math.pi * (1.0 - rho * (1.0 - e_avg)))
+            multi = e_ms * (1.0 - (a * math.pi + b * g_term(cos_i))) * (1.0 - (a * math.pi + b * g_term(cos_o)))
+            multi = dr.select(sigma < 1e-5, 0.0, multi)
+            return rho * (a + b * s / t + multi) * cos_o
+
+        def sample(self, ctx, si, sample1, sample2, active=True):
+            active = active & (mi.Frame3f.cos_theta(si.wi) > 0.0)
+            bs = mi.BSDFSample3f()
+            bs.wo = mi.warp.square_to_cosine_hemisphere(sample2)
+            bs.pdf = mi.warp.square_to_cosine_hemisphere_pdf(bs.wo)
+            bs.eta = 1.0
+            bs.sampled_type = mi.UInt32(+mi.BSDFFlags.DiffuseReflection)
+            bs.sampled_component = mi.UInt32(0)
+            active = active & (bs.pdf > 0.0) & ctx.is_enabled(mi.BSDFFlags.DiffuseReflection)
+            return bs, dr.select(active, self._f(si, bs.wo, active) / dr.maximum(bs.pdf, 1e-20), 0.0)
+
+        def eval(self, ctx, si, wo, active=True):
+            active = active & (mi.Frame3f.cos_theta(si.wi) > 0.0) & (mi.Frame3f.cos_theta(wo) > 0.0)
+            return dr.select(active & ctx.is_enabled(mi.BSDFFlags.DiffuseReflection), self._f(si, wo, active), 0.0)
+
+        def pdf(self, ctx, si, wo, active=True):
+            active = active & (mi.Frame3f.cos_theta(si.wi) > 0.0) & (mi.Frame3f.cos_theta(wo) > 0.0)
+            return dr.select(active, mi.warp.square_to_cosine_hemisphere_pdf(wo), 0.0)
+
+        def eval_pdf(self, ctx, si, wo, active=True):
+            return self.eval(ctx, si, wo, active), self.pdf(ctx, si, wo, active)
+
+        def traverse(self, callback):
+            callback.put("reflectance", self.reflectance, mi.ParamFlags.Differentiable)
+            callback.put("roughness", self.roughness, mi.ParamFlags.NonDifferentiable)
+
+        def parameters_changed(self, keys=[]):  # noqa: B006 - Mitsuba's signature
+            dr.make_opaque(self.roughness)
+
+    mi.register_bsdf(EON_PLUGIN, lambda props: CyclesOrenNayar(props))
+    register_cycles_oren_nayar._done = (EON_PLUGIN,)
+
+
+# --------------------------------------------------------------------------- helpers
+def _with_render(spec, **changes):
+    return dataclasses.replace(spec, render=dataclasses.replace(spec.render, **changes))
+
+
+def _lambert(spec):
+    return dataclasses.replace(spec, objects=tuple(dataclasses.replace(o, roughness=0.0) for o in spec.objects))
+
+
+def _code_hash(*modules) -> str:
+    h = hashlib.sha1()
+    for m in modules:
+        with open(m.__file__, "rb") as f:
+            h.update(f.read())
+    return h.hexdigest()[:10]
+
+
+class MitsubaSide:
+    """Renders specs with relight's templates; ``eon=True`` uses Cycles' Oren-Nayar."""
+
+    def __init__(self, eon: bool = False):
+        from relight import backend
+        from relight.scene import bsdf, build
+        self.mi = backend.init()
+        self.bsdf, self.eon = bsdf, eon
+        if eon:
+            register_cycles_oren_nayar(self.mi, backend.drjit())
+        self.builder = build.SceneBuilder()
+        self.tag = f"mitsuba{self.mi.__version__}-{'eon' if eon else 'std'}-{_code_hash(bsdf, build)}"
+
+    def template(self, spec):
+        saved = self.bsdf.PLUGIN
+        if self.eon:
+            self.bsdf.register()               # the standard plugin, then point the builder at ours
+            self.bsdf.PLUGIN = EON_PLUGIN
+        try:
+            return self.builder.template_for(spec)
+        finally:
+            self.bsdf.PLUGIN = saved
+
+    def render(self, spec, spp: int, seed: int) -> tuple[np.ndarray, float]:
+        import time
+        template = self.template(_with_render(spec, spp=spp, seed=seed))
+        t0 = time.perf_counter()
+        image = template.render(spp, seed)
+        return image, time.perf_counter() - t0
+
+
+class CyclesSide:
+    def __init__(self):
+        self.worker = blender.CyclesWorker()
+        self.tag = f"cycles-{blender.SAMPLING_PATTERN}-{_code_hash(blender)}"
+
+    def render(self, spec, spp: int, seed: int) -> tuple[np.ndarray, float]:
+        return self.worker.render(spec, spp, seed)
+
+
+def reference(side, spec, spp: int, cache: str) -> np.ndarray:
+    """Converged render of ``spec`` (its own seed), cached by content."""
+    key = hashlib.sha1(f"{side.tag}|{spp}|{spec.to_json()}".encode()).hexdigest()[:16]
+    path = os.path.join(cache, f"{side.tag.split('-')[0]}-{key}.npy")
+    if os.path.isfile(path):
+        return np.load(path)
+    image, _ = side.render(spec, spp, spec.render.seed)
+    tmp = f"{path}.tmp{os.getpid()}.npy"
+    np.save(tmp, image)
+    os.replace(tmp, path)
+    return image
+
+
+def spp_for(errors: dict[int, float], target: float) -> float | None:
+    """Sample count where the mean error crosses ``target`` (log-log between ladder
+    points; None above the ladder; below the first point extrapolated with slope -1/2)."""
+    spps = sorted(errors)
+    if errors[spps[0]] <= target:
+        return spps[0] * (errors[spps[0]] / target) ** 2
+    for lo, hi in zip(spps, spps[1:]):
+        if errors[hi] <= target:
+            slope = math.log(errors[hi] / errors[lo]) / math.log(hi / lo)
+            return lo * (target / errors[lo]) ** (1.0 / slope)
+    return None
+
+
+def time_at(times: dict[int, float], spp: float) -> float:
+    """Seconds per image at ``spp``: least-squares line t = t0 + k spp over the ladder."""
+    x = np.array(sorted(times), float)
+    y = np.array([times[int(s)] for s in x])
+    k, t0 = np.polyfit(x, y, 1)
+    return float(t0 + k * spp)
+
+
+# --------------------------------------------------------------------------- main
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=4, help="scenes")
+    ap.add_argument("--res", type=int, default=128)
+    ap.add_argument("--ref-spp", type=int, default=2048, help="samples of the converged references")
+    ap.add_argument("--targets", default="0.03,0.015,0.0075", help="relative RMSE targets")
+    ap.add_argument("--cache", default=DEFAULT_CACHE, help="folder of cached references")
+    args = ap.parse_args(argv)
+    if blender.blender_python() is None:
+        print("bench_cycles: skipped (no Blender environment; run scripts/setup_blender.sh)")
+        return 0
+    from relight.scene.sampling import GeneratorConfig, sample_scene
+    cache = os.path.expanduser(args.cache)
+    os.makedirs(cache, exist_ok=True)
+    targets = [float(t) for t in args.targets.split(",")]
+    specs = [sample_scene(GeneratorConfig(res=args.res), SCENE_SEED, i) for i in range(args.n)]
+
+    mitsuba, mitsuba_eon, cycles = MitsubaSide(), MitsubaSide(eon=True), CyclesSide()
+    try:
+        bar = tqdm(total=args.n * 5 + args.n * len(LADDER_SPP), desc="bench_cycles", leave=False)
+        refs = {}
+        for i, spec in enumerate(specs):
+            refs["m", i] = reference(mitsuba, spec, args.ref_spp, cache); bar.update()
+            refs["c", i] = reference(cycles, spec, args.ref_spp, cache); bar.update()
+            refs["m0", i] = reference(mitsuba, _lambert(spec), args.ref_spp, cache); bar.update()
+            refs["c0", i] = reference(cycles, _lambert(spec), args.ref_spp, cache); bar.update()
+            refs["me", i] = reference(mitsuba_eon, spec, args.ref_spp, cache); bar.update()
+
+        cycles.render(specs[0], 4, 1)   # warm: Cycles' device and kernels start once per process
+        errors = {"m": {}, "c": {}}
+        times = {"m": {}, "c": {}}
+        for spp in LADDER_SPP:   # alternate the renderers so both see the same machine load
+            per = {"m": ([], []), "c": ([], [])}
+            for i, spec in enumerate(specs):
+                seed = spec.render.seed + NOISY_SEED_OFFSET + spp
+                mitsuba.render(spec, spp, seed + 1)          # warm: kernels compiled
+                for key, side in (("m", mitsuba), ("c", cycles)):
+                    image, seconds = side.render(spec, spp, seed)
+                    per[key][0].append(blender.relative_rmse(image, refs[key, i]))
+                    per[key][1].append(seconds)
+                bar.update()
+            for key in per:
+                errors[key][spp] = float(np.mean(per[key][0]))
+                times[key][spp] = float(np.mean(per[key][1]))
+        bar.close()
+    finally:
+        cycles.worker.close()
+
+    # (a) cross-check
+    floor = [math.hypot(errors["m"][LADDER_SPP[-1]], errors["c"][LADDER_SPP[-1]])
+             * math.sqrt(LADDER_SPP[-1] / args.ref_spp)]
+    print(f"# Mitsuba (relight) vs Blender {cycles.worker.version} Cycles: {args.n} default scenes, "
+          f"{args.res} px, path depth {specs[0].render.max_depth}, Mitsuba sampler "
+          f"{getattr(specs[0].render, 'sampler', 'independent')}, Cycles {blender.SAMPLING_PATTERN}")
+    print(f"\n## (a) converged renders ({args.ref_spp} spp each): Cycles against Mitsuba")
+    print("| scene | objects (roughness) | mean Cycles / Mitsuba | rel. RMSE | rel. RMSE, roughness 0 "
+          "| mean ratio, roughness 0 | rel. RMSE, Mitsuba + Cycles' multiscatter term |")
+    print("|---|---|---|---|---|---|---|")
+    cols = {"std": [], "l": [], "e": []}
+    for i, spec in enumerate(specs):
+        m, c, m0, c0, me = (refs[k, i] for k in ("m", "c", "m0", "c0", "me"))
+        objs = ", ".join(f"{o.family} {o.roughness:.2f}" for o in spec.objects)
+        row = (c.mean() / m.mean(), blender.relative_rmse(c, m), blender.relative_rmse(c0, m0),
+               c0.mean() / m0.mean(), blender.relative_rmse(c, me))
+        cols["std"].append(row[1]); cols["l"].append(row[2]); cols["e"].append(row[4])
+        print(f"| {spec.id} | {objs} | {row[0]:.4f} | {row[1]:.4f} | {row[2]:.4f} | {row[3]:.4f} | {row[4]:.4f} |")
+    print(f"| mean | | | {np.mean(cols['std']):.4f} | {np.mean(cols['l']):.4f} | | {np.mean(cols['e']):.4f} |")
+    print(f"\nnoise floor of two {args.ref_spp}-spp references (extrapolated from the ladder): "
+          f"{floor[0]:.4f}")
+
+    # (b) equal error
+    print("\n## (b) relative RMSE against each renderer's own reference, seconds per image")
+    print("| spp | Mitsuba rel. RMSE | Mitsuba s | Cycles rel. RMSE | Cycles s |")
+    print("|---|---|---|---|---|")
+    for spp in LADDER_SPP:
+        print(f"| {spp} | {errors['m'][spp]:.4f} | {times['m'][spp]:.3f} | {errors['c'][spp]:.4f} | "
+              f"{times['c'][spp]:.3f} |")
+    for key, name in (("m", "Mitsuba"), ("c", "Cycles")):
+        x = np.array(LADDER_SPP, float)
+        k, t0 = np.polyfit(x, [times[key][s] for s in LADDER_SPP], 1)
+        print(f"{name}: t = {t0:.3f} s + {k * 1000:.3f} ms x spp (fixed cost per image + cost per sample)")
+    print("\n| target rel. RMSE | Mitsuba spp | Mitsuba s/image | Cycles spp | Cycles s/image | Cycles / Mitsuba time |")
+    print("|---|---|---|---|---|---|")
+    for target in targets:
+        sm, sc = spp_for(errors["m"], target), spp_for(errors["c"], target)
+        tm = time_at(times["m"], sm) if sm else None
+        tc = time_at(times["c"], sc) if sc else None
+        ratio = f"{tc / tm:.1f}" if tm and tc else "-"
+        fmt = lambda s, t: ("> ladder", "-") if s is None else (f"{s:.0f}", f"{t:.3f}")  # noqa: E731
+        print(f"| {target:.4f} | {' | '.join(fmt(sm, tm))} | {' | '.join(fmt(sc, tc))} | {ratio} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
