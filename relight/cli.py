@@ -38,7 +38,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="relight",
                      description="Light direction and colour from one image (Sial et al.), "
                                  "verified with the Mitsuba 3 renderer.")
-    parser.add_argument("--threads", type=int, default=None,
+    from relight.commands.argtypes import threads
+    parser.add_argument("--threads", type=threads, default=None,
                         help="Dr.Jit render threads (default: all cores)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
@@ -57,13 +58,15 @@ def user_errors() -> tuple[type, ...]:
     """Exception types that mean 'bad input' (one line, exit 2) rather than a bug."""
     from relight.backend import BackendError
     from relight.dataset import DatasetError
+    from relight.fileio import OutputError
     from relight.render import ImageError
     from relight.scene.sampling import ConfigError
     from relight.scene.spec import SceneFileError
-    errors = [BackendError, DatasetError, ImageError, ConfigError, SceneFileError,
+    errors = [BackendError, DatasetError, ImageError, ConfigError, SceneFileError, OutputError,
               FileNotFoundError, PermissionError, IsADirectoryError, NotADirectoryError]
     for extra in ("relight.predictions:PredictionsError", "relight.net.io:ModelFileError",
-                  "relight.probes:ProbeError", "relight.blender:BlenderError"):
+                  "relight.probes:ProbeError", "relight.probe_geometry:ProbeError",
+                  "relight.blender:BlenderError"):
         mod, _, cls = extra.partition(":")
         try:
             errors.append(getattr(importlib.import_module(mod), cls))
@@ -72,7 +75,17 @@ def user_errors() -> tuple[type, ...]:
     return tuple(errors)
 
 
+def _quiet_libraries() -> None:
+    """One line means one line: library warnings (torch, numpy, PIL) are not shown
+    unless RELIGHT_WARNINGS=1."""
+    if os.environ.get("RELIGHT_WARNINGS") != "1":
+        import warnings
+        warnings.simplefilter("ignore")
+        os.environ.setdefault("PYTHONWARNINGS", "ignore")   # worker processes too
+
+
 def main(argv: list[str] | None = None) -> int:
+    _quiet_libraries()
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.threads is not None:

@@ -14,24 +14,39 @@ after its three files are in place. A kill at any moment can therefore leave at 
 a partial *last line* of the manifest, which readers ignore and the next run cuts
 off, and possibly finished files without a record, which the next run rewrites.
 Re-running the same command resumes: image ``i`` depends only on (seed, i).
+
+One writer per dataset: :func:`generate` holds an OS lock on ``FOLDER/.relight.lock``
+for the whole run (a second writer gets :class:`~relight.fileio.OutputError`), so it
+can remove the temporary files that killed runs left (readers skip such names).
+Worker processes die with their parent (a parent-death signal and a watched pipe).
+A run that fails before finishing any image leaves the folder as it was.
 """
 from __future__ import annotations
 
 import json
+import math
 import multiprocessing as mp
 import os
+import shutil
+import signal
+import sys
+import threading
 import time
 from dataclasses import dataclass
 
 import numpy as np
 
 from relight import frames
+from relight.fileio import FolderLock, atomic_write, remove_temps, write_json
 from relight.scene.sampling import GeneratorConfig, sample_scene, split_of
 from relight.scene.spec import SceneSpec
 
 DATASET_FORMAT = "relight.dataset/v1"
 MANIFEST = "manifest.jsonl"
 CARD = "dataset.json"
+MAX_COUNT = 1_000_000      # ids are six digits
+SEED_LIMIT = 2 ** 32       # dataset seeds are in [0, 2**32)
+SPLITS = ("train", "val", "test")
 
 
 class DatasetError(ValueError):
@@ -79,31 +94,87 @@ def record_for(spec: SceneSpec, split: str) -> dict:
 
 
 def read_manifest(dataset_dir: str | os.PathLike, repair: bool = False) -> list[dict]:
-    """Records of a dataset, in file order. A partial last line (a killed writer) is
-    ignored, and cut off when ``repair`` is true. Raises :class:`DatasetError`."""
+    """Records of a dataset, in file order, each checked (:func:`check_record`).
+
+    A partial last line (a killed writer) is ignored, and cut off when ``repair`` is
+    true. Records repeated with identical content (two writers of an older relight)
+    are kept once -- and removed from the file when ``repair`` is true; the same id
+    with different content is an error. Raises :class:`DatasetError` naming the file
+    and line.
+    """
     path = os.path.join(os.fspath(dataset_dir), MANIFEST)
     if not os.path.isfile(path):
         raise DatasetError(f"{os.fspath(dataset_dir)}: no {MANIFEST} (not a relight dataset?)")
     with open(path, "rb") as f:
         data = f.read()
-    records, good_end, pos = [], 0, 0
+    records, seen, good_end, pos, line_no, duplicates = [], {}, 0, 0, 0, 0
     while pos < len(data):
         nl = data.find(b"\n", pos)
         if nl < 0:
             break  # partial last line: its writer was killed
+        line_no += 1
         line = data[pos:nl]
         try:
             rec = json.loads(line)
-        except json.JSONDecodeError:
+        except (json.JSONDecodeError, UnicodeDecodeError):
             if data.find(b"\n", nl + 1) >= 0:
-                raise DatasetError(f"{path}: corrupt record at byte {pos}") from None
+                raise DatasetError(f"{path}: corrupt record on line {line_no}") from None
             break
-        records.append(rec)
+        check_record(rec, f"{path}: line {line_no}")
+        first = seen.get(rec["id"])
+        if first is not None:
+            if first != rec:
+                raise DatasetError(f"{path}: line {line_no}: id {rec['id']!r} appears twice with "
+                                   "different content")
+            duplicates += 1
+        else:
+            seen[rec["id"]] = rec
+            records.append(rec)
         pos = good_end = nl + 1
-    if repair and good_end < len(data):
-        with open(path, "r+b") as f:
-            f.truncate(good_end)
+    if repair and (good_end < len(data) or duplicates):
+        text = b"".join((json.dumps(r) + "\n").encode() for r in records) if duplicates else data[:good_end]
+        if duplicates:
+            atomic_write(path, lambda tmp: open(tmp, "wb").write(text))
+        else:
+            with open(path, "r+b") as f:
+                f.truncate(good_end)
     return records
+
+
+def _finite_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def check_record(rec, where: str) -> None:
+    """Check the fields of a manifest record that readers use; raises
+    :class:`DatasetError` (``where`` names file and line)."""
+    if not isinstance(rec, dict):
+        raise DatasetError(f"{where}: expected a JSON object, got {type(rec).__name__}")
+    rid = rec.get("id")
+    if not isinstance(rid, str) or not rid or "/" in rid or "\\" in rid or rid in (".", ".."):
+        raise DatasetError(f"{where}: 'id' must be a plain name, got {rid!r}")
+    where = f"{where} (id {rid!r})"
+    for key in ("image", "exr", "scene"):   # exr and scene may be absent (hand-made datasets)
+        if (key in rec or key == "image") and not isinstance(rec.get(key), str):
+            raise DatasetError(f"{where}: {key!r} must be a relative path string, got {rec.get(key)!r}")
+    if rec.get("split") not in SPLITS:
+        raise DatasetError(f"{where}: 'split' must be one of {', '.join(SPLITS)}, got {rec.get('split')!r}")
+    for part, keys in (("light", ("pan_deg", "tilt_deg")), ("camera", ("pan_deg", "tilt_deg"))):
+        obj = rec.get(part)
+        if not isinstance(obj, dict):
+            raise DatasetError(f"{where}: {part!r} must be an object")
+        for k in keys:
+            if not _finite_number(obj.get(k)):
+                raise DatasetError(f"{where}: {part}.{k} must be a finite number, got {obj.get(k)!r}")
+    rgb = rec["light"].get("rgb")
+    if not (isinstance(rgb, list) and len(rgb) == 3 and all(_finite_number(c) and c >= 0 for c in rgb)
+            and max(rgb) > 0):
+        raise DatasetError(f"{where}: light.rgb must be three finite non-negative numbers, got {rgb!r}")
+    if not _finite_number(rec.get("pan_rel_deg")):
+        raise DatasetError(f"{where}: pan_rel_deg must be a finite number, got {rec.get('pan_rel_deg')!r}")
+    y = rec.get("y")
+    if not (isinstance(y, list) and len(y) == frames.Y_SIZE and all(_finite_number(v) for v in y)):
+        raise DatasetError(f"{where}: 'y' must be a list of {frames.Y_SIZE} finite numbers")
 
 
 def read_card(dataset_dir: str | os.PathLike) -> dict:
@@ -116,25 +187,22 @@ def read_card(dataset_dir: str | os.PathLike) -> dict:
         raise DatasetError(f"cannot read dataset card {path}: {exc}") from None
 
 
-def _write_card(out: str, seed: int, cfg: GeneratorConfig, count: int) -> None:
+def _write_card(out: str, seed: int, cfg: GeneratorConfig, count: int, n_records: int) -> None:
     card_path = os.path.join(out, CARD)
     settings = {"format": DATASET_FORMAT, "seed": int(seed), "config": cfg.to_dict()}
-    if os.path.isfile(card_path):
+    if os.path.isfile(card_path) and n_records:  # a card without records binds nothing
         old = read_card(out)
         same = {k: old.get(k) for k in settings}
         if json.loads(json.dumps(same)) != json.loads(json.dumps(settings)):
             raise DatasetError(f"{out} holds a dataset made with other settings (seed or config); "
                                "use another --out or the same settings to resume")
         count = max(count, int(old.get("count", 0)))
-    card = {**settings, "count": int(count),
+    card = {**settings, "count": int(count), "spp": cfg.render_spp,
             "description": "SID2-style synthetic dataset rendered with Mitsuba 3 by relight "
                            "(Sial et al., 'Light Direction and Color Estimation from Single Image "
                            "with Deep Regression')",
             "split_rule": "sha256(id) -> train/val/test by config.split fractions"}
-    tmp = card_path + ".tmp"
-    with open(tmp, "w") as f:
-        json.dump(card, f, indent=1)
-    os.replace(tmp, card_path)
+    write_json(card_path, card)
 
 
 def _prepare(cfg: GeneratorConfig, seed: int, index: int):
@@ -152,7 +220,8 @@ def _write(out: str, spec: SceneSpec, image: np.ndarray, split: str) -> dict:
     """Stage 3 (writer thread): the scene file, EXR and PNG, each atomically; returns
     the record to append once all three are in place."""
     from relight.render import write_exr, write_png
-    spec.save(os.path.join(out, "scenes", f"{spec.id}.json"))
+    from relight.fileio import write_text
+    write_text(os.path.join(out, "scenes", f"{spec.id}.json"), spec.to_json())
     write_exr(os.path.join(out, "exr", f"{spec.id}.exr"), image)
     write_png(os.path.join(out, "images", f"{spec.id}.png"), image)
     return record_for(spec, split)
@@ -189,8 +258,33 @@ def _pipeline(out: str, cfg: GeneratorConfig, seed: int, indices: list[int], on_
             f.result()
 
 
-def _worker(out, cfg, seed, indices, threads, queue):
+def _die_with_parent(parent_pid: int, watch) -> None:
+    """Make this worker process end when its parent ends, however the parent ends: a
+    parent-death signal (Linux) and a thread that exits when the pipe from the parent
+    closes (everywhere)."""
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)   # PR_SET_PDEATHSIG = 1
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent_pid:   # the parent died before prctl took effect
+        os._exit(3)
+
+    def watch_parent():
+        try:
+            watch.recv()   # the parent never sends: returns (EOFError) when it dies
+        except (EOFError, OSError):
+            pass
+        os._exit(3)
+    threading.Thread(target=watch_parent, name="parent-watch", daemon=True).start()
+
+
+def _worker(out, cfg, seed, indices, threads, queue, parent_pid=None, watch=None):
     from relight import backend
+    if watch is not None:
+        _die_with_parent(parent_pid, watch)
     try:
         backend.init(threads=threads)
         _pipeline(out, cfg, seed, indices, lambda record, render_s: queue.put(("ok", record, render_s)))
@@ -212,22 +306,71 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
         progress: show a progress bar (images/s) on stderr.
         threads: Dr.Jit threads per process (default: cores / workers).
     """
-    from tqdm import tqdm
     cfg = cfg or GeneratorConfig()
-    if count < 0:
-        raise DatasetError(f"count must be >= 0, got {count}")
+    if isinstance(count, bool) or not isinstance(count, int) or not 0 <= count <= MAX_COUNT:
+        raise DatasetError(f"count must be an integer in [0, {MAX_COUNT}], got {count!r}")
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < SEED_LIMIT:
+        raise DatasetError(f"seed must be an integer in [0, 2**32), got {seed!r}")
     if workers < 1:
         raise DatasetError(f"workers must be >= 1, got {workers}")
+    if threads is not None and threads < 1:
+        raise DatasetError(f"threads must be >= 1, got {threads}")
     out = os.fspath(out_dir)
+    if os.path.lexists(out) and not os.path.isdir(out):
+        raise DatasetError(f"{out} exists and is not a folder")
+    existed = os.path.isdir(out)
+    os.makedirs(out, exist_ok=True)
+    card_path = os.path.join(out, CARD)
+    try:
+        lock = FolderLock(out, "dataset").acquire()
+    except BaseException:
+        if not existed:
+            shutil.rmtree(out, ignore_errors=True)
+        raise
+    old_card = open(card_path, "rb").read() if os.path.isfile(card_path) else None
+    stats = GenerateStats()
+    try:
+        return _generate_locked(out, count, seed, cfg, workers, progress, threads, stats)
+    except BaseException:
+        if stats.written == 0:   # nothing made: leave the folder as it was
+            if not existed:
+                shutil.rmtree(out, ignore_errors=True)
+            elif old_card is not None:
+                atomic_write(card_path, lambda tmp: open(tmp, "wb").write(old_card))
+            elif os.path.isfile(card_path) and not _has_records(out):
+                os.remove(card_path)
+        raise
+    finally:
+        lock.release()
+
+
+def _check_meshes(cfg: GeneratorConfig) -> None:
+    """Load every mesh of ``cfg.mesh_dir`` once, so a bad file fails before any render."""
+    if cfg.mesh_dir:
+        from relight.scene.build import _user_mesh
+        from relight.scene.sampling import mesh_files
+        for path in mesh_files(cfg.mesh_dir):
+            _user_mesh(path)
+
+
+def _has_records(out: str) -> bool:
+    path = os.path.join(out, MANIFEST)
+    return os.path.isfile(path) and os.path.getsize(path) > 0
+
+
+def _generate_locked(out: str, count: int, seed: int, cfg: GeneratorConfig, workers: int,
+                     progress: bool, threads: int | None, stats: GenerateStats) -> GenerateStats:
+    from tqdm import tqdm
+    remove_temps(out, ("", "images", "exr", "scenes"))   # left by killed runs (we hold the lock)
     for sub in ("images", "exr", "scenes"):
         os.makedirs(os.path.join(out, sub), exist_ok=True)
-    _write_card(out, seed, cfg, count)
     manifest_path = os.path.join(out, MANIFEST)
     done = set()
     if os.path.exists(manifest_path):
         done = {r["id"] for r in read_manifest(out, repair=True)}
+    _write_card(out, seed, cfg, count, len(done))
     todo = [i for i in range(count) if f"{i:06d}" not in done]
-    stats = GenerateStats(skipped=count - len(todo))
+    stats.skipped = count - len(todo)
     if not todo:
         return stats
     cores = os.cpu_count() or 1
@@ -247,11 +390,18 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
         if workers == 1:
             from relight import backend
             backend.init(threads=threads)
+            _check_meshes(cfg)
             _pipeline(out, cfg, seed, todo, append)
         else:
+            if cfg.mesh_dir:
+                from relight import backend
+                backend.init(threads=1)
+                _check_meshes(cfg)
             ctx = mp.get_context("spawn")
             queue = ctx.Queue()
-            procs = [ctx.Process(target=_worker, args=(out, cfg, seed, todo[w::workers], threads, queue),
+            watch, keep_alive = ctx.Pipe(duplex=False)   # workers watch it; closes when we die
+            procs = [ctx.Process(target=_worker, args=(out, cfg, seed, todo[w::workers], threads, queue,
+                                                       os.getpid(), watch),
                                  daemon=True) for w in range(workers)]
             for p in procs:
                 p.start()
@@ -266,6 +416,7 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
                     if p.is_alive():
                         p.terminate()
                     p.join()
+                keep_alive.close()
     stats.total_s = time.perf_counter() - t_start
     bar.close()
     return stats

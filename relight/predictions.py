@@ -55,6 +55,8 @@ class Prediction:
         else:
             pan, tilt, rgb = float(frames.wrap360(self.pan_deg)), float(self.tilt_deg), np.asarray(self.rgb)
         rgb = np.asarray(rgb, dtype=np.float64)
+        if np.isfinite(rgb).all() and rgb.max() > 0:
+            rgb = rgb / rgb.max()   # no overflow in the norm of huge values
         norm = np.linalg.norm(rgb)
         if not np.isfinite(norm) or norm <= 0 or (rgb < 0).any():
             raise PredictionsError(f"entry {self.id!r}: rgb must be non-negative and non-zero, got {rgb.tolist()}")
@@ -161,10 +163,12 @@ def read_predictions(path: str | os.PathLike, skip_bad: bool = False) -> Predict
 
 
 def write_predictions(path: str | os.PathLike, entries: list[dict], dataset: str | None = None,
-                      colour_only: bool = False, **meta) -> None:
+                      colour_only: bool = False, inputs=(), transaction=None, **meta) -> None:
     """Write a predictions file atomically. Each entry: ``{"id", "pan_deg", "tilt_deg",
     "rgb"}`` or ``{"id", "y"}`` (extra keys are kept), or ``{"id", "rgb"}`` with
-    ``colour_only``. Entries are validated first (ids unique)."""
+    ``colour_only``. Entries are validated first (ids unique). The file is refused if it
+    is one of ``inputs`` or inside ``dataset``'s own files; with a
+    :class:`relight.fileio.Transaction` it is staged there instead of written."""
     seen = set()
     for i, e in enumerate(entries):
         p = parse_entry(e, i, colour_only)
@@ -178,8 +182,15 @@ def write_predictions(path: str | os.PathLike, entries: list[dict], dataset: str
         doc["dataset"] = os.fspath(dataset)
     doc.update(meta)
     doc["predictions"] = entries
-    path = os.fspath(path)
-    tmp = f"{path}.tmp{os.getpid()}"
-    with open(tmp, "w") as f:
-        json.dump(doc, f, indent=1)
-    os.replace(tmp, path)
+    from relight.fileio import atomic_write
+
+    def write(tmp):
+        with open(tmp, "w") as f:
+            json.dump(doc, f, indent=1)
+    inputs = list(inputs) + ([dataset] if dataset is not None else [])
+    if transaction is not None:
+        from relight.fileio import check_outputs
+        check_outputs([path], inputs)
+        transaction.stage(path, write)
+    else:
+        atomic_write(path, write, inputs)

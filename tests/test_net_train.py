@@ -64,8 +64,9 @@ def test_resume_equals_uninterrupted(tiny, tmp_path):
     cfg1 = TrainConfig(data_dir=tiny, epochs=1, batch_size=4, res=RES, width=8, seed=5)
     train(cfg2, tmp_path / "straight", progress=False)
     train(cfg1, tmp_path / "cut", progress=False)
+    assert train(cfg1, tmp_path / "cut", progress=False)["epoch"] == 1  # the identical command resumes
     with pytest.raises(DatasetError, match="--resume"):
-        train(cfg1, tmp_path / "cut", progress=False)  # refuses to overwrite a run
+        train(cfg2, tmp_path / "cut", progress=False)  # other settings: refuses without --resume
     row = train(cfg2, tmp_path / "cut", resume=True, progress=False)
     assert row["epoch"] == 2
     a = torch.load(tmp_path / "straight" / "checkpoint.pt", weights_only=True)

@@ -1,4 +1,8 @@
-"""Argument types shared by the subcommands: each rejects bad text with one line."""
+"""Argument types shared by the subcommands: each rejects bad text with one line.
+
+Every numeric option of every verb uses one of these, so zero, negative, NaN, inf and
+absurdly large values are refused by argparse (one line, exit 2) before any work.
+"""
 from __future__ import annotations
 
 import argparse
@@ -8,7 +12,7 @@ import math
 def _number(text: str, kind=float):
     try:
         return kind(text)
-    except ValueError:
+    except (ValueError, OverflowError):
         raise argparse.ArgumentTypeError(
             f"expected {'an integer' if kind is int else 'a number'}, got {text!r}") from None
 
@@ -53,3 +57,80 @@ def rgb(text: str) -> tuple[float, float, float]:
         raise argparse.ArgumentTypeError(
             f"expected three finite non-negative numbers, not all zero, got {text!r}")
     return values
+
+
+def int_in(lo: int, hi: int, what: str = "an integer"):
+    """A type accepting integers in ``[lo, hi]``."""
+    def parse(text: str) -> int:
+        v = _number(text, int)
+        if not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"expected {what} in [{lo}, {hi}], got {text!r}")
+        return v
+    parse.__name__ = what.replace(" ", "_")
+    return parse
+
+
+def float_in(lo: float, hi: float, what: str = "a number", open_lo: bool = False):
+    """A type accepting finite numbers in ``[lo, hi]`` (``(lo, hi]`` with ``open_lo``)."""
+    def parse(text: str) -> float:
+        v = finite_float(text)
+        if not (lo < v if open_lo else lo <= v) or v > hi:
+            bracket = "(" if open_lo else "["
+            raise argparse.ArgumentTypeError(f"expected {what} in {bracket}{lo:g}, {hi:g}], got {text!r}")
+        return v
+    parse.__name__ = what.replace(" ", "_")
+    return parse
+
+
+MAX_RES = 4096            # pixels per side of any rendered or network image
+MAX_SPP = 1 << 16
+SEED_LIMIT = 2 ** 32
+MAX_COUNT = 1_000_000     # dataset ids have six digits
+MAX_RGB = 1e6
+
+resolution = int_in(1, MAX_RES, "an image size in pixels")
+net_resolution = int_in(16, MAX_RES, "a network input size in pixels")
+spp = int_in(1, MAX_SPP, "a sample count per pixel")
+max_depth = int_in(1, 64, "a path depth")
+seed = int_in(0, SEED_LIMIT - 1, "a seed")
+threads = int_in(1, 1024, "a thread count")
+workers = int_in(1, 256, "a process count")
+loader_workers = int_in(0, 256, "a worker count")
+count = int_in(0, MAX_COUNT, "an image count")
+limit = int_in(1, 10_000_000, "a count")
+columns = int_in(1, 64, "a column count")
+epochs = int_in(1, 100_000, "an epoch count")
+batch_size = int_in(1, 65_536, "a batch size")
+patience = int_in(0, 100_000, "a patience in epochs")
+width = int_in(1, 1024, "a network width")
+iterations = int_in(1, 1_000_000, "an iteration count")
+learning_rate = float_in(0.0, 1.0, "a learning rate", open_lo=True)
+seconds = float_in(0.0, 1e7, "a time in seconds", open_lo=True)
+minutes = float_in(0.0, 1e6, "a time in minutes")
+relative_rmse = float_in(0.0, 1.0, "a relative RMSE", open_lo=True)
+light_pan = float_in(-360.0, 360.0, "a light pan in degrees")
+light_tilt = float_in(-90.0, 90.0, "a light tilt in degrees")
+
+
+def bounded_rgb(text: str) -> tuple[float, float, float]:
+    """``R,G,B``: three finite numbers in [0, 1e6], the largest at least 1e-6."""
+    values = rgb(text)
+    if max(values) > MAX_RGB or max(values) < 1e-6:
+        raise argparse.ArgumentTypeError(
+            f"expected three numbers in [0, {MAX_RGB:g}] with the largest >= 1e-6, got {text!r}")
+    return values
+
+
+def loss_weights(text: str):
+    """``PAN,TILT,COLOUR`` loss weights: three finite numbers in [0, 1e6], not all zero."""
+    from relight.net.loss import LossWeights
+    parts = text.split(",")
+    try:
+        values = [float(v) for v in parts]
+    except ValueError:
+        values = []
+    if len(values) != 3 or not all(math.isfinite(v) and 0 <= v <= MAX_RGB for v in values) \
+            or max(values) <= 0:
+        raise argparse.ArgumentTypeError(
+            f"expected three finite numbers in [0, 1e6], not all zero, like 1,1,1, got {text!r}")
+    return LossWeights(pan=values[0], tilt=values[1], colour=values[2])

@@ -4,7 +4,7 @@ from __future__ import annotations
 import importlib.util
 import os
 
-from relight.commands.argtypes import positive_int
+from relight.commands import argtypes as at
 
 
 def add_commands(sub) -> None:
@@ -19,7 +19,7 @@ def add_commands(sub) -> None:
     e.add_argument("scene", help="scene file (JSON)")
     e.add_argument("--out", required=True, help="Blender file to write (.blend)")
     e.add_argument("--render", default=None, help="also render with Cycles to this linear .exr")
-    e.add_argument("--spp", type=positive_int, default=None, help="samples per pixel (default: the scene's)")
+    e.add_argument("--spp", type=at.spp, default=None, help="samples per pixel (default: the scene's)")
     e.set_defaults(func=cmd_export_blender)
 
 

@@ -10,14 +10,16 @@ from __future__ import annotations
 
 import os
 
+from relight.commands import argtypes as at
+
 
 def add_commands(sub) -> None:
     d = sub.add_parser("demo", help="small end-to-end run: generate, predict, compare",
                        description=__doc__.split("\n\n")[0])
     d.add_argument("--out", default="demo_out", help="output folder (default demo_out)")
-    d.add_argument("--count", type=int, default=12, help="images to generate (default 12)")
-    d.add_argument("--res", type=int, default=128, help="image size (default 128)")
-    d.add_argument("--spp", type=int, default=64, help="samples per pixel (default 64)")
+    d.add_argument("--count", type=at.count, default=12, help="images to generate (default 12)")
+    d.add_argument("--res", type=at.resolution, default=128, help="image size (default 128)")
+    d.add_argument("--spp", type=at.spp, default=64, help="samples per pixel (default 64)")
     d.set_defaults(func=cmd_demo)
 
 

@@ -8,7 +8,7 @@ import os
 import sys
 from dataclasses import dataclass
 
-from relight.commands.argtypes import positive_float, positive_int
+from relight.commands import argtypes as at
 
 SPLITS = ("test", "val", "train", "all")
 
@@ -33,6 +33,9 @@ def dataset_jobs(data_dir: str, split: str = "test", limit: int | None = None) -
         records = records[:limit]
     if not records:
         raise DatasetError(f"{data_dir}: no records in split {split!r}")
+    for r in records:
+        if "scene" not in r or "exr" not in r:
+            raise DatasetError(f"{data_dir}: record {r['id']!r} has no scene or exr file")
     return [Job(r["id"], safe_join(data_dir, r["scene"]), safe_join(data_dir, r["exr"]),
                 float(r["camera"]["tilt_deg"])) for r in records]
 
@@ -102,9 +105,15 @@ TRACE_FIELDS = ("id", "iteration", "stage", "start", "loss", "pan_deg", "tilt_de
                 "r", "g", "b", "renders", "seconds")
 
 
-def write_trace_csv(path: str, results) -> None:
-    """One CSV row per logged optimiser state (pan_deg = pan_rel), atomically."""
-    tmp = f"{path}.tmp{os.getpid()}"
+def write_trace_csv(path: str, results, transaction=None) -> None:
+    """One CSV row per logged optimiser state (pan_deg = pan_rel), atomically (or staged
+    in ``transaction``)."""
+    from relight.fileio import atomic_write
+    (transaction.stage if transaction is not None else atomic_write)(
+        path, lambda tmp: _write_trace(tmp, results))
+
+
+def _write_trace(tmp: str, results) -> None:
     with open(tmp, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(TRACE_FIELDS)
@@ -113,7 +122,6 @@ def write_trace_csv(path: str, results) -> None:
                 w.writerow([job.id, t["iteration"], t["stage"], t["start"], f"{t['loss']:.6e}",
                             f"{t['pan_deg']:.4f}", f"{t['tilt_deg']:.4f}", f"{t['r_m']:.4f}",
                             *[f"{c:.6f}" for c in t["rgb"]], t["renders"], t["seconds"]])
-    os.replace(tmp, path)
 
 
 def add_commands(sub) -> None:
@@ -127,20 +135,20 @@ def add_commands(sub) -> None:
     src.add_argument("--scene", help="scene file of a single image (with --image)")
     v.add_argument("--image", help="the image to invert (.exr linear, or .png sRGB) with --scene")
     v.add_argument("--split", choices=SPLITS, default="test", help="dataset split (default test)")
-    v.add_argument("--limit", type=positive_int, default=None, help="first N images of the split")
+    v.add_argument("--limit", type=at.limit, default=None, help="first N images of the split")
     v.add_argument("--out", required=True, help="predictions file to write (relight.predictions/v1)")
     v.add_argument("--trace", default=None, help="per-iteration CSV (default: OUT with .trace.csv)")
     v.add_argument("--init", default="grid",
                    help="'grid' (coarse search, default), 'network', or a predictions file")
     v.add_argument("--model", default=None, help="model file for --init network (default: shipped)")
-    v.add_argument("--max-iters", type=positive_int, default=None, help="LM iterations per image (default 60)")
-    v.add_argument("--time-budget", type=positive_float, default=None,
+    v.add_argument("--max-iters", type=at.iterations, default=None, help="LM iterations per image (default 60)")
+    v.add_argument("--time-budget", type=at.seconds, default=None,
                    help="seconds per image (default 60)")
     v.add_argument("--fit-radius", action="store_true", help="also fit the light distance")
     v.add_argument("--gradient", choices=("fd", "ad"), default="fd",
                    help="Jacobian of each LM step: 'fd' central finite differences (default) or "
                         "'ad' automatic differentiation with shadow-edge terms (relight.inverse.ad)")
-    v.add_argument("--seed", type=int, default=None, help="sampler seed of the fit (default 1)")
+    v.add_argument("--seed", type=at.seed, default=None, help="sampler seed of the fit (default 1)")
     v.add_argument("--quiet", action="store_true", help="no progress bar")
     v.set_defaults(func=cmd_invert)
 
@@ -151,15 +159,24 @@ def add_commands(sub) -> None:
     b.add_argument("name", choices=sorted(METHODS), help="method")
     b.add_argument("--data", required=True, help="dataset folder")
     b.add_argument("--split", choices=SPLITS, default="test", help="dataset split (default test)")
-    b.add_argument("--limit", type=positive_int, default=None, help="first N images of the split")
+    b.add_argument("--limit", type=at.limit, default=None, help="first N images of the split")
     b.add_argument("--out", required=True, help="predictions file to write")
     b.set_defaults(func=cmd_baseline)
 
 
 def cmd_invert(args) -> int:
+    from relight.fileio import Transaction, check_file_target, check_outputs
     from relight.inverse.optimize import InverseError, InvertConfig
     from relight.predictions import write_predictions
     from relight.scene.spec import load_scene
+    trace = args.trace or os.path.splitext(args.out)[0] + ".trace.csv"
+    inputs = [args.data, args.scene, args.image, args.model,
+              args.init if args.init not in ("grid", "network") else None]
+    check_outputs([args.out, trace], inputs)
+    if os.path.realpath(args.out) == os.path.realpath(trace):
+        raise InverseError(f"--trace {trace} is the same file as --out")
+    check_file_target(args.out)
+    check_file_target(trace)
     if args.data:
         if args.image:
             raise InverseError("--image goes with --scene; with --data the targets are the dataset's EXRs")
@@ -175,11 +192,11 @@ def cmd_invert(args) -> int:
     settings = {"init": args.init, "max_iters": cfg.max_iters, "time_budget_s": cfg.time_budget_s,
                 "fit_radius": cfg.fit_radius, "seed": cfg.seed, "gradient": cfg.gradient,
                 "levels": [dataclasses.asdict(lv) for lv in cfg.levels]}
-    write_predictions(args.out, [res.entry(job.id) for job, res in results],
-                      dataset=os.path.abspath(args.data) if args.data else None,
-                      method="inverse", settings=settings)
-    trace = args.trace or os.path.splitext(args.out)[0] + ".trace.csv"
-    write_trace_csv(trace, results)
+    with Transaction(inputs=inputs) as t:   # --out and --trace: both or neither
+        write_predictions(args.out, [res.entry(job.id) for job, res in results],
+                          dataset=os.path.abspath(args.data) if args.data else None,
+                          method="inverse", settings=settings, transaction=t)
+        write_trace_csv(trace, results, transaction=t)
     n = len(results)
     seconds = sum(r.seconds for _, r in results)
     print(f"{args.out}: {n} images, {sum(r.iterations for _, r in results) / n:.1f} iterations, "
@@ -192,8 +209,12 @@ def cmd_baseline(args) -> int:
     from tqdm import tqdm
 
     from relight.inverse.colour_baselines import estimate, write_colour_predictions
+    from relight.fileio import check_file_target, check_outputs
     from relight.render import read_image
+    check_outputs([args.out], [args.data])
+    check_file_target(args.out)
     jobs = dataset_jobs(args.data, args.split, args.limit)
+    check_outputs([args.out], [j.image_path for j in jobs] + [j.scene_path for j in jobs])
     entries = []
     for job in tqdm(jobs, desc=args.name, unit="img", disable=len(jobs) < 50):
         rgb = estimate(args.name, read_image(job.image_path)[0])

@@ -64,14 +64,13 @@ def split_records(records: list[dict], split: str) -> list[dict]:
 
 
 def _read_png_srgb8(path: str) -> np.ndarray:
-    from PIL import Image, UnidentifiedImageError
+    from relight.render import ImageError, read_srgb8
+    if not os.path.isfile(path):
+        raise DatasetError(f"dataset image missing: {path}")
     try:
-        with Image.open(path) as im:
-            return np.asarray(im.convert("RGB"))
-    except FileNotFoundError:
-        raise DatasetError(f"dataset image missing: {path}") from None
-    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as exc:
-        raise DatasetError(f"cannot read dataset image {path}: {str(exc).splitlines()[0][:120]}") from None
+        return read_srgb8(path)[0]
+    except ImageError as exc:
+        raise DatasetError(f"dataset image: {exc}") from None
 
 
 class LightDataset(Dataset):

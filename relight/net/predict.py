@@ -84,31 +84,23 @@ def predict_arrays(model, images_linear: list[np.ndarray], camera_tilt_deg: list
 
 
 def read_input(path: str, res: int) -> tuple[torch.Tensor, str]:
-    """Network input of an image file and the encoding assumed for it.
+    """Network input of an image file and how it was read (see
+    :func:`relight.render.load_image`: every PNG mode and bit depth, JPEG, EXR).
     Raises :class:`relight.render.ImageError` for unreadable files."""
-    from PIL import Image, UnidentifiedImageError
-
-    from relight.render import ImageError, read_exr, to_srgb8
-    if path.lower().endswith(".exr"):
-        return prepare_srgb8(to_srgb8(read_exr(path)), res), "linear (EXR) -> 8-bit sRGB"
-    try:
-        with Image.open(path) as im:
-            im.load()
-            srgb8 = np.asarray(im.convert("RGB"))
-    except FileNotFoundError:
-        raise ImageError(f"image not found: {path}") from None
-    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as exc:
-        raise ImageError(f"cannot read image {path}: {str(exc).splitlines()[0][:120]}") from None
-    return prepare_srgb8(srgb8, res), "8-bit sRGB (used as is)"
+    from relight.render import read_srgb8
+    srgb8, note = read_srgb8(path)
+    return prepare_srgb8(srgb8, res), note
 
 
 def list_images(paths: list[str]) -> list[str]:
     """Files named, plus the images (PNG/JPEG/EXR) directly inside named folders, sorted."""
+    from relight.fileio import is_temp_name
     from relight.render import ImageError
     out = []
     for p in paths:
         if os.path.isdir(p):
-            found = sorted(os.path.join(p, n) for n in os.listdir(p) if n.lower().endswith(IMAGE_EXTENSIONS))
+            found = sorted(os.path.join(p, n) for n in os.listdir(p)
+                           if n.lower().endswith(IMAGE_EXTENSIONS) and not is_temp_name(n) and not n.startswith("."))
             if not found:
                 raise ImageError(f"no PNG/JPEG/EXR images in folder {p}")
             out += found

@@ -10,7 +10,8 @@ import tempfile
 
 import numpy as np
 
-from relight.commands.argtypes import camera_tilt, positive_int
+from relight.commands import argtypes as at
+from relight.commands.argtypes import camera_tilt
 from relight.frames import PHOTO_CAMERA_TILT_DEG as DEFAULT_PHOTO_CAMERA_TILT_DEG
 
 
@@ -24,8 +25,8 @@ def add_commands(sub) -> None:
     c.add_argument("--data", default=None, help="dataset folder (default: the file's 'dataset' field)")
     c.add_argument("--out", required=True, help="report folder (written atomically)")
     c.add_argument("--skip-bad", action="store_true", help="skip bad entries and list them in the report")
-    c.add_argument("--limit", type=positive_int, default=None, help="compare only the first N predictions")
-    c.add_argument("--max-columns", type=positive_int, default=8, help="columns of figure3 (default 8)")
+    c.add_argument("--limit", type=at.limit, default=None, help="compare only the first N predictions")
+    c.add_argument("--max-columns", type=at.columns, default=8, help="columns of figure3 (default 8)")
     c.add_argument("--quiet", action="store_true", help="no progress bar")
     c.set_defaults(func=cmd_compare)
 
@@ -41,9 +42,9 @@ def add_commands(sub) -> None:
     s.add_argument("--out", required=True, help="output folder (spheres_NNN.png/.pdf, 8 images a page)")
     s.add_argument("--camera-tilt", type=camera_tilt, default=DEFAULT_PHOTO_CAMERA_TILT_DEG,
                    help="camera tilt in degrees for entries without a dataset record (default 45)")
-    s.add_argument("--res", type=positive_int, default=96, help="sphere render size in pixels (default 96)")
-    s.add_argument("--spp", type=positive_int, default=32, help="samples per pixel (default 32)")
-    s.add_argument("--limit", type=positive_int, default=None, help="only the first N predictions")
+    s.add_argument("--res", type=at.resolution, default=96, help="sphere render size in pixels (default 96)")
+    s.add_argument("--spp", type=at.spp, default=32, help="samples per pixel (default 32)")
+    s.add_argument("--limit", type=at.limit, default=None, help="only the first N predictions")
     s.set_defaults(func=cmd_spheres)
 
     p = fsub.add_parser("pole", help="draw a rendered pole and its shadow under the predicted light",
@@ -60,11 +61,20 @@ def add_commands(sub) -> None:
 
 def cmd_compare(args) -> int:
     from relight.verify.compare import compare_predictions
+    from relight.fileio import check_folder_target, check_outputs
+    from relight.verify.compare import CompareError
     from relight.verify.report import check_out, write_report
     out = os.path.abspath(args.out)
+    check_outputs([out], [args.predictions, args.data], replaces_folder=True)
+    check_folder_target(out)
     check_out(out)
     comparison = compare_predictions(args.predictions, data_dir=args.data, limit=args.limit,
                                      skip_bad=args.skip_bad, progress=not args.quiet)
+    check_outputs([out], [comparison.dataset_dir], replaces_folder=True)
+    if not comparison.items:
+        first = f" (first: {comparison.bad[0][0]}: {comparison.bad[0][1]})" if comparison.bad else ""
+        raise CompareError(f"{args.predictions}: nothing could be compared: "
+                           f"{len(comparison.bad)} bad entries{first}")
     settings = {"command": "compare", "predictions": os.path.abspath(args.predictions),
                 "data": comparison.dataset_dir, "out": out, "skip_bad": bool(args.skip_bad),
                 "limit": args.limit, "max_columns": args.max_columns,
@@ -154,9 +164,14 @@ def cmd_spheres(args) -> int:
     from relight import backend
     from relight.verify import figures
     backend.init()
+    from relight.fileio import check_folder_target, check_outputs
     out = os.path.abspath(args.out)
     if os.path.lexists(out) and not os.path.isdir(out):
         raise FileExistsError_(f"--out {out} exists and is not a folder")
+    check_outputs([out], [args.predictions, args.data], replaces_folder=True)
+    check_folder_target(out)
+    if os.path.isdir(out) and os.listdir(out) and not _is_spheres_folder(out):
+        raise FileExistsError_(f"--out {out} exists and is not a spheres figure folder; choose another --out")
     rows = sphere_rows(args.predictions, args.data, args.camera_tilt, args.res, args.spp, args.limit)
     parent = os.path.dirname(out)
     os.makedirs(parent, exist_ok=True)
@@ -179,6 +194,15 @@ def cmd_spheres(args) -> int:
         raise
     print(f"{out}: spheres for {len(rows)} images")
     return 0
+
+
+def _is_spheres_folder(path: str) -> bool:
+    import json
+    try:
+        with open(os.path.join(path, "settings.json")) as f:
+            return json.load(f).get("command") == "figure spheres"
+    except (OSError, ValueError, AttributeError):
+        return False
 
 
 def FileExistsError_(msg):  # noqa: N802 - a user error the CLI reports in one line
@@ -206,10 +230,13 @@ def pick_entry(predictions, image_path: str, wanted_id: str | None):
 def cmd_pole(args) -> int:
     from relight import backend
     from relight.predictions import read_predictions
+    from relight.fileio import check_file_target, check_outputs
     from relight.render import ImageError, read_image, write_png
     from relight.verify.figures import pole_overlay
+    check_outputs([args.out], [args.image, args.predictions])
     if not args.out.lower().endswith(".png"):
         raise ImageError(f"--out must end in .png, got {args.out!r}")
+    check_file_target(args.out)
     image, _ = read_image(args.image)
     pred = pick_entry(read_predictions(args.predictions).predictions, args.image, args.id)
     pan, tilt, rgb = pred.resolve(args.camera_tilt)

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from relight import metrics
+from relight import frames, metrics
 from relight.dataset import DatasetError, load_spec, read_manifest, safe_join
 from relight.predictions import Prediction, PredictionsError, read_predictions
 from relight.render import ImageError, read_exr
@@ -218,6 +218,8 @@ def compare_predictions(predictions_path: str | os.PathLike, data_dir: str | Non
 
     def fail(pred: Prediction, reason: str):
         label = f"entry {pred.id!r}"
+        if reason.startswith(label + ": "):   # the reason names the entry already
+            reason = reason[len(label) + 2:]
         if not skip_bad:
             raise CompareError(f"{predictions_path}: {label}: {reason}")
         bad.append((label, reason))
@@ -264,9 +266,7 @@ def moved_light_predictions(dataset_dir: str | os.PathLike, spread_deg: float = 
         gt = _gt_light(rec)
         d_pan, d_tilt = rng.uniform(-spread_deg, spread_deg, 2)
         rgb = np.asarray(gt.rgb) * (1.0 + rng.uniform(-colour_spread, colour_spread, 3))
-        pan, tilt = gt.pan_rel_deg + d_pan, gt.tilt_deg + d_tilt
-        if tilt > 90.0:  # past the zenith: the same direction seen from the other side
-            pan, tilt = pan + 180.0, 180.0 - tilt
-        out.append({"id": rec["id"], "pan_deg": float(pan % 360.0), "tilt_deg": float(max(tilt, 0.0)),
+        pan, tilt = frames.fold_over_zenith(gt.pan_rel_deg + d_pan, gt.tilt_deg + d_tilt)
+        out.append({"id": rec["id"], "pan_deg": float(pan), "tilt_deg": float(max(tilt, 0.0)),
                     "rgb": [float(c) for c in rgb]})
     return out

@@ -1,0 +1,711 @@
+"""Fault injection through the CLI: nothing lost, ever.
+
+Every class of failure of issue 12 is tried against the command line: outputs equal
+to inputs for every verb, concurrent writers, SIGKILL of a single-process and of a
+multi-worker ``generate``, images of every PNG mode and bit depth (and broken or
+over-large ones), corrupt checkpoints, a bad-argument sweep of every numeric option
+of every verb, and half-written leftovers. A refused command must exit 2 with exactly
+one line on stderr, no traceback, and leave the input tree byte-identical.
+
+Refusals run ``relight.cli.main`` in this process with file-descriptor capture (the
+same code path as the console script, and it also sees what C++ libraries print on
+fd 1/2); kills, locks and worker processes need real subprocesses.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import random
+import shutil
+import signal
+import struct
+import subprocess
+import sys
+import time
+import zlib
+
+import numpy as np
+import pytest
+
+from relight.fileio import is_temp_name
+
+CLI = [sys.executable, "-m", "relight.cli"]
+RES = 16                 # tiny renders
+SPP = 2
+KILL_SEED = 12           # random kill moments, reproducible
+WORKER_EXIT_S = 20.0     # orphaned workers must be gone by then
+PROCESS_TIMEOUT_S = 300
+
+
+# --- helpers ----------------------------------------------------------------------------
+
+def cli(argv, capfd):
+    """Run the CLI in this process; returns (exit code, stdout, stderr)."""
+    from relight.cli import main
+    try:
+        code = main([str(a) for a in argv])
+    except SystemExit as exc:   # argparse
+        code = exc.code
+    out, err = capfd.readouterr()
+    return code, out, err
+
+
+def assert_refused(code, err, contains: str | None = None):
+    assert code == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("relight: error:") and "Traceback" not in err, err
+    assert TEMP_HINT not in lines[0], err   # messages name the user's paths, not temporaries
+    if contains:
+        assert contains in lines[0], err
+
+
+TEMP_HINT = ".relight-tmp-"
+
+
+def tree(root) -> dict:
+    """``{relative path: sha256}`` of every file (hidden ones too) and folder under root."""
+    out = {}
+    for folder, dirs, files in os.walk(root):
+        for d in dirs:
+            out[os.path.relpath(os.path.join(folder, d), root) + "/"] = "dir"
+        for f in files:
+            p = os.path.join(folder, f)
+            with open(p, "rb") as fh:
+                out[os.path.relpath(p, root)] = hashlib.sha256(fh.read()).hexdigest()
+    return out
+
+
+def temps_under(root) -> list[str]:
+    return [os.path.join(d, f) for d, _, files in os.walk(root) for f in files if is_temp_name(f)]
+
+
+def manifest_ids(folder) -> list[str]:
+    with open(os.path.join(folder, "manifest.jsonl"), "rb") as f:
+        return [json.loads(line)["id"] for line in f.read().split(b"\n") if line.strip()]
+
+
+def generate_cmd(out, count, seed=5, *extra):
+    return CLI + ["generate", "--count", str(count), "--res", str(RES), "--spp", str(SPP), "--seed", str(seed),
+                  "--out", str(out), "--quiet", *extra]
+
+
+def children_of(pid: int) -> list[int]:
+    """Pids whose parent is ``pid`` (Linux /proc)."""
+    kids = []
+    for name in os.listdir("/proc"):
+        if name.isdigit():
+            try:
+                with open(f"/proc/{name}/stat") as f:
+                    fields = f.read().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == pid:
+                kids.append(int(name))
+    return kids
+
+
+def alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def wait_for_records(folder, n, proc, timeout=PROCESS_TIMEOUT_S) -> None:
+    path = os.path.join(folder, "manifest.jsonl")
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        if os.path.exists(path) and open(path, "rb").read().count(b"\n") >= n:
+            return
+        if proc.poll() is not None:
+            return
+        time.sleep(0.02)
+    raise AssertionError("generate made no progress")
+
+
+def check_complete(folder) -> list[dict]:
+    """Every record's three files exist and are readable."""
+    from relight.dataset import read_manifest
+    from relight.render import read_exr, read_image
+    recs = read_manifest(folder)
+    for r in recs:
+        assert read_image(os.path.join(folder, r["image"]))[0].shape == (RES, RES, 3)
+        assert read_exr(os.path.join(folder, r["exr"])).shape == (RES, RES, 3)
+        json.loads(open(os.path.join(folder, r["scene"])).read())
+    return recs
+
+
+# --- a tiny world of inputs, shared by the module ----------------------------------------
+
+@pytest.fixture(scope="module")
+def world(tmp_path_factory, mi):
+    """Inputs under one root: a 4-image dataset, a predictions file, masks, a scene copy
+    named like an image, a broken model file."""
+    from PIL import Image
+
+    from relight.dataset import generate, read_manifest
+    from relight.predictions import write_predictions
+    from relight.scene.sampling import GeneratorConfig
+    root = tmp_path_factory.mktemp("faults")
+    inp = root / "in"
+    inp.mkdir()
+    data = inp / "D"
+    generate(data, 4, seed=3, cfg=GeneratorConfig(res=RES, spp=SPP), progress=False)
+    recs = read_manifest(data)
+    write_predictions(inp / "preds.json", [
+        {"id": r["id"], "pan_deg": r["pan_rel_deg"], "tilt_deg": r["light"]["tilt_deg"],
+         "rgb": r["light"]["rgb"]} for r in recs], dataset=str(data))
+    shutil.copy(data / "images" / "000000.png", inp / "photo.png")
+    shutil.copy(data / "scenes" / "000000.json", inp / "scene.png")   # a scene file named like an image
+    yy, xx = np.mgrid[:RES, :RES]
+    disc = ((xx - RES / 2 + 0.5) ** 2 + (yy - RES / 2 + 0.5) ** 2 < (RES / 3) ** 2).astype(np.uint8) * 255
+    Image.fromarray(disc).save(inp / "mask.png")
+    Image.fromarray(disc[:8, :8]).save(inp / "small_mask.png")
+    (inp / "model.safetensors").write_bytes(b"not a model")
+    scratch = root / "out"
+    scratch.mkdir()
+    return {"root": inp, "D": data, "preds": inp / "preds.json", "photo": inp / "photo.png",
+            "scene": data / "scenes" / "000000.json", "exr": data / "exr" / "000000.exr",
+            "scene_png": inp / "scene.png", "mask": inp / "mask.png", "small_mask": inp / "small_mask.png",
+            "bad_model": inp / "model.safetensors", "out": scratch}
+
+
+def fill(argv, w, tmp_path):
+    keys = {k: str(v) for k, v in w.items()} | {"tmp": str(tmp_path)}
+    return [a.format(**keys) for a in argv]
+
+
+def refused_unchanged(argv, w, tmp_path, capfd, contains=None):
+    before = tree(w["root"])
+    code, _, err = cli(fill(argv, w, tmp_path), capfd)
+    assert_refused(code, err, contains)
+    assert tree(w["root"]) == before
+    return err
+
+
+# --- 1. an output equal to an input, every verb -------------------------------------------
+
+OUTPUT_IS_INPUT = [
+    ["render", "{scene_png}", "--out", "{scene_png}"],
+    ["predict", "{photo}", "--out", "{photo}"],
+    ["predict", "{D}/images", "--out", "{D}/images/000001.png"],
+    ["evaluate", "--data", "{D}", "--out", "{D}/images"],
+    ["evaluate", "--data", "{D}", "--out", "{D}/manifest.jsonl"],
+    ["train", "--data", "{D}", "--out", "{D}/scenes", "--res", "16"],
+    ["train", "--data", "{D}", "--out", "{D}"],
+    ["compare", "{preds}", "--data", "{D}", "--out", "{D}"],
+    ["compare", "{preds}", "--data", "{D}", "--out", "{root}"],
+    ["baseline", "gray-world", "--data", "{D}", "--split", "all", "--out", "{D}/manifest.jsonl"],
+    ["baseline", "gray-world", "--data", "{D}", "--split", "all", "--out", "{D}/dataset.json"],
+    ["invert", "--scene", "{scene}", "--image", "{exr}", "--out", "{scene}"],
+    ["invert", "--scene", "{scene}", "--image", "{exr}", "--out", "{tmp}/p.json", "--trace", "{exr}"],
+    ["invert", "--data", "{D}", "--out", "{D}/manifest.jsonl"],
+    ["probe", "--chrome", "{photo}", "--chrome-mask", "{mask}", "--fov", "40", "--out", "{mask}"],
+    ["figure", "pole", "{photo}", "{preds}", "--out", "{photo}"],
+    ["figure", "spheres", "{preds}", "--data", "{D}", "--out", "{D}"],
+    ["generate", "--out", "{preds}", "--count", "1", "--res", "16"],
+]
+
+
+@pytest.mark.parametrize("argv", OUTPUT_IS_INPUT, ids=lambda a: " ".join(a[:1] + a[-2:]))
+def test_output_equal_to_input_is_refused(argv, world, tmp_path, capfd):
+    refused_unchanged(argv, world, tmp_path, capfd)
+
+
+def test_output_refusal_through_the_console_script(world, tmp_path):
+    before = tree(world["root"])
+    cmd = CLI + ["baseline", "gray-world", "--data", str(world["D"]), "--split", "all",
+                 "--out", str(world["D"] / "manifest.jsonl")]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=PROCESS_TIMEOUT_S)
+    assert_refused(proc.returncode, proc.stderr, "part of the input dataset")
+    assert tree(world["root"]) == before
+
+
+# --- 2. --out of the wrong kind, half-written leftovers -------------------------------------
+
+WRONG_OUT = [
+    (["predict", "{photo}", "--out", "{D}/images"], "is a folder"),
+    (["probe", "--chrome", "{photo}", "--chrome-mask", "{mask}", "--fov", "40", "--out", "{root}"], "is a folder"),
+    (["evaluate", "--data", "{D}", "--out", "{preds}"], "not a folder"),
+    (["train", "--data", "{D}", "--out", "{preds}", "--res", "16"], "not a folder"),
+    (["compare", "{preds}", "--data", "{D}", "--out", "{photo}"], None),
+    (["figure", "spheres", "{preds}", "--data", "{D}", "--out", "{photo}"], "not a folder"),
+    (["generate", "--out", "{photo}", "--count", "1"], "not a folder"),
+    (["probe", "--chrome", "{photo}", "--chrome-mask", "{small_mask}", "--fov", "40", "--out", "{tmp}/p.json"],
+     "pixels"),
+    (["predict", "{photo}", "--model", "{bad_model}", "--out", "{tmp}/p.json"], "model"),
+]
+
+
+@pytest.mark.parametrize("argv,contains", WRONG_OUT, ids=lambda a: " ".join(a[:1] + a[-2:]) if isinstance(a, list) else "")
+def test_wrong_kind_of_output_or_input_is_refused(argv, contains, world, tmp_path, capfd):
+    refused_unchanged(argv, world, tmp_path, capfd, contains)
+    assert not temps_under(tmp_path) and not os.path.exists(tmp_path / "p.json")
+
+
+def test_evaluate_writes_all_four_files_or_none(world, tmp_path, capfd):
+    # An older report is there; the fourth file cannot be written (a folder is in its
+    # way): the command fails and the older report is left exactly as it was.
+    out = tmp_path / "report"
+    out.mkdir()
+    for name in ("report.md", "metrics.json", "per_image.csv"):
+        (out / name).write_text("older\n")
+    (out / "predictions.json").mkdir()
+    before, inputs = tree(tmp_path), tree(world["root"])
+    code, _, err = cli(["evaluate", "--data", world["D"], "--split", "all", "--out", out], capfd)
+    assert_refused(code, err, "predictions.json")
+    assert tree(tmp_path) == before and tree(world["root"]) == inputs
+    # and with the way clear, all four are replaced
+    (out / "predictions.json").rmdir()
+    code, _, err = cli(["evaluate", "--data", world["D"], "--split", "all", "--out", out], capfd)
+    assert code == 0, err
+    assert sorted(os.listdir(out)) == ["metrics.json", "per_image.csv", "predictions.json", "report.md"]
+    assert (out / "report.md").read_text() != "older\n"
+
+
+def test_invert_writes_out_and_trace_or_neither(world, tmp_path, capfd):
+    (tmp_path / "trace.csv").mkdir()   # the trace cannot be written
+    code, _, err = cli(["invert", "--scene", world["scene"], "--image", world["exr"], "--out", tmp_path / "p.json",
+                        "--trace", tmp_path / "trace.csv", "--max-iters", "1", "--quiet"], capfd)
+    assert_refused(code, err, "trace.csv")
+    assert sorted(os.listdir(tmp_path)) == ["trace.csv"]
+
+
+def test_failed_generate_leaves_nothing_and_does_not_block(world, tmp_path, capfd):
+    meshes = tmp_path / "meshes"
+    meshes.mkdir()
+    (meshes / "junk.obj").write_bytes(b"\x00\xff garbage \x01\x02 not an OBJ file\nf 1 2 9\n")
+    out = tmp_path / "ds"
+    code, _, err = cli(["generate", "--count", "2", "--res", RES, "--spp", SPP, "--mesh-dir", meshes, "--config",
+                        world["preds"], "--out", out, "--quiet"], capfd)
+    assert_refused(code, err)
+    code, _, err = cli(["generate", "--count", "4", "--res", RES, "--spp", SPP, "--seed", "3", "--mesh-dir", meshes,
+                        "--out", out, "--quiet"], capfd)
+    assert_refused(code, err, "junk.obj")
+    assert not out.exists()   # nothing was there before, nothing is left
+    code, _, err = cli(["generate", "--count", "1", "--res", RES, "--spp", SPP, "--out", out, "--quiet"], capfd)
+    assert code == 0, err     # the corrected command is not blocked by a leftover card
+    assert manifest_ids(out) == ["000000"]
+
+
+def test_compare_with_nothing_comparable_exits_2(world, tmp_path, capfd):
+    from relight.predictions import write_predictions
+    preds = tmp_path / "unknown.json"
+    write_predictions(preds, [{"id": "nope", "pan_deg": 10.0, "tilt_deg": 40.0, "rgb": [1, 1, 1]}],
+                      dataset=str(world["D"]))
+    code, _, err = cli(["compare", preds, "--data", world["D"], "--out", tmp_path / "r", "--skip-bad",
+                        "--quiet"], capfd)
+    assert_refused(code, err, "nothing could be compared")
+    assert not (tmp_path / "r").exists()
+
+
+def test_compare_overflowing_rgb_is_one_line_and_not_doubled(world, tmp_path, capfd):
+    from relight.predictions import write_predictions
+    preds = tmp_path / "huge.json"
+    write_predictions(preds, [{"id": "000000", "pan_deg": 10.0, "tilt_deg": 40.0, "rgb": [1e308, 1e308, 1.0]}],
+                      dataset=str(world["D"]))
+    code, out, err = cli(["compare", preds, "--data", world["D"], "--out", tmp_path / "r", "--quiet"], capfd)
+    # a huge but finite colour is a valid colour (mostly red + green): compared normally
+    assert code == 0, err
+    assert err.count("entry '000000'") <= 1
+
+
+# --- 3. one writer per dataset, duplicates ----------------------------------------------------
+
+def test_second_writer_is_refused(tmp_path):
+    out = tmp_path / "ds"
+    first = subprocess.Popen(generate_cmd(out, 2000), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        wait_for_records(out, 1, first)
+        assert first.poll() is None
+        second = subprocess.run(generate_cmd(out, 2000), capture_output=True, text=True, timeout=PROCESS_TIMEOUT_S)
+        assert_refused(second.returncode, second.stderr, "another relight process")
+        assert first.poll() is None   # the first writer is unaffected
+    finally:
+        first.kill()
+        first.wait()
+    ids = [r["id"] for r in check_complete(out)]
+    assert ids == [f"{i:06d}" for i in range(len(ids))]   # one writer: in order, no duplicate
+
+
+def test_duplicate_records_read_once_and_repaired(world, tmp_path, capfd):
+    from relight.dataset import read_manifest
+    data = tmp_path / "D"
+    shutil.copytree(world["D"], data)
+    lines = (data / "manifest.jsonl").read_bytes().splitlines(keepends=True)
+    (data / "manifest.jsonl").write_bytes(b"".join(lines + lines[:2]))   # two writers appended twice
+    assert [r["id"] for r in read_manifest(data)] == [f"{i:06d}" for i in range(4)]
+    code, _, err = cli(["evaluate", "--data", data, "--split", "all", "--out", tmp_path / "e"], capfd)
+    assert code == 0, err
+    assert json.loads((tmp_path / "e" / "metrics.json").read_text())["n"] == 4
+    code, _, err = cli(["generate", "--count", "4", "--res", RES, "--spp", SPP, "--seed", "3", "--out", data,
+                        "--quiet"], capfd)
+    assert code == 0, err
+    assert manifest_ids(data) == [f"{i:06d}" for i in range(4)]   # repaired in place
+
+
+@pytest.mark.parametrize("verb", ["evaluate", "train", "compare", "invert"])
+def test_conflicting_duplicate_or_malformed_record_is_refused(verb, world, tmp_path, capfd):
+    data = tmp_path / "D"
+    shutil.copytree(world["D"], data)
+    lines = (data / "manifest.jsonl").read_bytes().splitlines(keepends=True)
+    rec = json.loads(lines[1])
+    rec["light"]["tilt_deg"] = "forty"          # a non-numeric field
+    bad = json.dumps(rec).encode() + b"\n"
+    for content, words in ((b"".join(lines[:1] + [bad] + lines[2:]), "tilt_deg"),
+                           (b"".join(lines + [lines[0].replace(b'"split"', b'"extra": 1, "split"')]), "twice")):
+        (data / "manifest.jsonl").write_bytes(content)
+        before = tree(tmp_path)
+        argv = {"evaluate": ["evaluate", "--data", data, "--split", "all", "--out", tmp_path / "o"],
+                "train": ["train", "--data", data, "--out", tmp_path / "o", "--res", "16", "--quiet"],
+                "compare": ["compare", world["preds"], "--data", data, "--out", tmp_path / "o", "--quiet"],
+                "invert": ["invert", "--data", data, "--split", "all", "--out", tmp_path / "o.json"]}[verb]
+        code, _, err = cli(argv, capfd)
+        assert_refused(code, err, words)
+        assert "manifest.jsonl" in err
+        assert tree(tmp_path) == before
+
+
+# --- 4. kill -9 ------------------------------------------------------------------------------
+
+def _kill_and_resume(tmp_path, count, workers):
+    rng = random.Random(KILL_SEED + workers)
+    out = tmp_path / "ds"
+    extra = ["--workers", str(workers)] if workers > 1 else []
+    for attempt in range(2):   # two kills at random moments, then a run to the end
+        proc = subprocess.Popen(generate_cmd(out, count, 7, *extra), stdout=subprocess.DEVNULL,
+                                stderr=subprocess.DEVNULL)
+        wait_for_records(out, 1 + attempt * 2, proc)
+        time.sleep(rng.uniform(0.0, 0.4))
+        kids = children_of(proc.pid)
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+        deadline = time.time() + WORKER_EXIT_S
+        while any(alive(k) for k in kids) and time.time() < deadline:
+            time.sleep(0.05)
+        assert not [k for k in kids if alive(k)], "worker processes outlived their parent"
+        recs = check_complete(out)            # every record's files are whole
+        assert len(recs) < count
+    done = subprocess.run(generate_cmd(out, count, 7, *extra), capture_output=True, text=True,
+                          timeout=PROCESS_TIMEOUT_S)
+    assert done.returncode == 0, done.stderr
+    ids = manifest_ids(out)
+    assert sorted(ids) == [f"{i:06d}" for i in range(count)] and len(ids) == len(set(ids))
+    check_complete(out)
+    assert not temps_under(out), temps_under(out)
+    return out
+
+
+def test_kill_9_single_process_generate(tmp_path):
+    _kill_and_resume(tmp_path, 40, workers=1)
+
+
+@pytest.mark.slow
+def test_kill_9_multi_worker_generate(tmp_path):
+    _kill_and_resume(tmp_path, 40, workers=2)
+
+
+def test_workers_die_with_their_parent(tmp_path):
+    # the quick form of the test above: one kill of a 2-worker run, workers must go
+    out = tmp_path / "ds"
+    proc = subprocess.Popen(generate_cmd(out, 60, 7, "--workers", "2"), stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    wait_for_records(out, 1, proc)
+    kids = children_of(proc.pid)
+    assert kids, "no worker processes seen"
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    deadline = time.time() + WORKER_EXIT_S
+    while any(alive(k) for k in kids) and time.time() < deadline:
+        time.sleep(0.05)
+    assert not [k for k in kids if alive(k)], "worker processes outlived their parent"
+    n = len(check_complete(out))
+    time.sleep(0.5)
+    assert len(manifest_ids(out)) == n     # nobody writes any more
+
+
+def test_stray_temps_are_ignored_by_readers_and_removed_on_resume(world, tmp_path, capfd):
+    data = tmp_path / "D"
+    shutil.copytree(world["D"], data)
+    (data / "images" / "000219.tmp20245.png").write_bytes(b"")          # an older relight's
+    (data / "exr" / ".000001.relight-tmp-99999-abcd.exr").write_bytes(b"half")
+    (data / "dataset.json.tmp").write_text("{")
+    code, out, err = cli(["predict", data / "images", "--out", tmp_path / "p.json"], capfd)
+    assert code == 0, err
+    assert "wrote" in out and "(4 predictions)" in out
+    code, _, err = cli(["generate", "--count", "4", "--res", RES, "--spp", SPP, "--seed", "3", "--out", data,
+                        "--quiet"], capfd)
+    assert code == 0, err
+    assert not temps_under(data)
+
+
+# --- 5. images of every PNG mode and bit depth ------------------------------------------------
+
+def _png(width, height, depth, ctype, row: bytes, palette: bytes | None = None) -> bytes:
+    """A PNG whose every row is ``row`` (filter 0), written by hand so that every colour
+    type and bit depth of the PNG specification can be made."""
+    def chunk(tag, data):
+        return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data) & 0xFFFFFFFF)
+    head = chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, depth, ctype, 0, 0, 0))
+    body = (chunk(b"PLTE", palette) if palette else b"") + chunk(b"IDAT", zlib.compress((b"\0" + row) * height))
+    return b"\x89PNG\r\n\x1a\n" + head + body + chunk(b"IEND", b"")
+
+
+W = 8   # pixels per row: whole bytes at every bit depth
+PAL = bytes([0, 0, 0, 40, 200, 90])   # index 1 = (40, 200, 90)
+# (name, depth, colour type, row bytes, palette, expected sRGB value per channel, tolerance)
+PNG_CASES = [
+    ("grey1", 1, 0, b"\xff" * 1, None, (1.0,) * 3, 1e-6),
+    ("grey2", 2, 0, b"\xaa" * 2, None, (2 / 3,) * 3, 1e-6),           # value 0b10 = 2 of 3
+    ("grey4", 4, 0, b"\x55" * 4, None, (5 / 15,) * 3, 1e-6),
+    ("grey8", 8, 0, bytes([64]) * W, None, (64 / 255,) * 3, 1e-6),
+    ("grey16", 16, 0, b"\x40\x00" * W, None, (0x4000 / 65535,) * 3, 1e-6),   # was read almost white
+    ("rgb8", 8, 2, bytes([200, 100, 50]) * W, None, (200 / 255, 100 / 255, 50 / 255), 1e-6),
+    ("rgb16", 16, 2, b"\xc0\x00\x40\x00\x10\x00" * W, None, (0xC000 / 65535, 0x4000 / 65535, 0x1000 / 65535), 1e-6),
+    ("pal1", 1, 3, b"\xff", PAL, (40 / 255, 200 / 255, 90 / 255), 1e-6),
+    ("pal2", 2, 3, b"\x55" * 2, PAL, (40 / 255, 200 / 255, 90 / 255), 1e-6),
+    ("pal4", 4, 3, b"\x11" * 4, PAL, (40 / 255, 200 / 255, 90 / 255), 1e-6),
+    ("pal8", 8, 3, b"\x01" * W, PAL, (40 / 255, 200 / 255, 90 / 255), 1e-6),
+    ("greyalpha8", 8, 4, bytes([64, 128]) * W, None, (64 / 255,) * 3, 1e-6),
+    ("greyalpha16", 16, 4, b"\x40\x00\x80\x00" * W, None, (0.25,) * 3, 1 / 255),
+    ("rgba8", 8, 6, bytes([200, 100, 50, 7]) * W, None, (200 / 255, 100 / 255, 50 / 255), 1e-6),
+    ("rgba16", 16, 6, b"\xc0\x00\x40\x00\x10\x00\x00\x10" * W, None, (0xC000 / 65535, 0x4000 / 65535, 0x1000 / 65535), 1e-6),
+]
+
+
+@pytest.fixture(scope="module")
+def png_dir(tmp_path_factory):
+    d = tmp_path_factory.mktemp("pngs")
+    for name, depth, ctype, row, pal, _, _ in PNG_CASES:
+        (d / f"{name}.png").write_bytes(_png(W, 6, depth, ctype, row, pal))
+    return d
+
+
+@pytest.mark.parametrize("case", PNG_CASES, ids=[c[0] for c in PNG_CASES])
+def test_every_png_mode_and_depth_reads_its_true_values(case, png_dir):
+    from relight import colour
+    from relight.render import load_image, read_image
+    name, depth, _, _, _, want, tol = case
+    pixels, encoding, note = load_image(png_dir / f"{name}.png")
+    assert encoding == "srgb" and pixels.shape == (6, W, 3)
+    np.testing.assert_allclose(pixels, np.broadcast_to(want, pixels.shape), atol=tol)
+    assert f"{depth}-bit" in note
+    linear, note2 = read_image(png_dir / f"{name}.png")
+    np.testing.assert_allclose(linear[0, 0], colour.srgb_decode(np.asarray(want)), atol=max(tol, 1e-6) * 2)
+    assert "linear" in note2
+
+
+def test_predict_reads_every_png_and_says_how(png_dir, tmp_path, capfd):
+    code, out, err = cli(["predict", png_dir, "--out", tmp_path / "p.json"], capfd)
+    assert code == 0, err
+    assert "16-bit sRGB (PNG grey)" in out and "alpha ignored" in out and "palette" in out
+    assert len(json.loads((tmp_path / "p.json").read_text())["predictions"]) == len(PNG_CASES)
+
+
+def _exr(path, channels: dict):
+    import OpenEXR
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    with OpenEXR.File(header, channels) as f:
+        f.write(str(path))
+
+
+@pytest.mark.parametrize("kind", ["RGB", "RGBA-half", "R,G,B", "Y"])
+def test_exr_channel_layouts(kind, tmp_path):
+    from relight.render import read_image
+    value = np.array([0.5, 0.25, 0.125], np.float32)
+    img = np.tile(value, (4, 5, 1))
+    channels = {"RGB": {"RGB": img},
+                "RGBA-half": {"RGBA": np.concatenate([img, np.ones((4, 5, 1), np.float32)], -1).astype(np.float16)},
+                "R,G,B": {c: np.ascontiguousarray(img[..., i]) for i, c in enumerate("RGB")},
+                "Y": {"Y": np.ascontiguousarray(img[..., 0])}}[kind]
+    _exr(tmp_path / "x.exr", channels)
+    got, note = read_image(tmp_path / "x.exr")
+    want = np.broadcast_to(value if kind != "Y" else value[:1].repeat(3), (4, 5, 3))
+    np.testing.assert_allclose(got, want, atol=1e-3)
+    assert "EXR" in note
+
+
+BAD_IMAGES = {
+    "truncated.png": lambda d: _png(W, 6, 8, 2, bytes([1, 2, 3]) * W)[:60],
+    "empty.png": lambda d: b"",
+    "text.png": lambda d: b"hello, not an image\n",
+    "bomb.png": lambda d: _png(100_000, 100_000, 8, 0, b"\0" * 16)[:33] + _png(W, 1, 8, 0, b"\0" * W)[33:],
+    "truncated.exr": lambda d: (d["exr"].read_bytes()[: len(d["exr"].read_bytes()) * 2 // 3]),
+    "header.exr": lambda d: d["exr"].read_bytes()[:300],
+}
+
+
+@pytest.mark.parametrize("name", sorted(BAD_IMAGES))
+@pytest.mark.parametrize("verb", ["predict", "probe", "pole"])
+def test_unreadable_images_are_one_line(name, verb, world, tmp_path, capfd):
+    bad = tmp_path / name
+    bad.write_bytes(BAD_IMAGES[name](world))
+    argv = {"predict": ["predict", bad, "--out", tmp_path / "p.json"],
+            "probe": ["probe", "--chrome", bad, "--chrome-mask", world["mask"], "--fov", "40",
+                      "--out", tmp_path / "p.json"],
+            "pole": ["figure", "pole", bad, world["preds"], "--id", "000000", "--out", tmp_path / "x.png"]}[verb]
+    before = tree(tmp_path)
+    code, out, err = cli(argv, capfd)
+    assert_refused(code, err, name)
+    assert out == "" or verb != "predict" or "Warning" not in out   # no library chatter
+    assert tree(tmp_path) == before
+
+
+# --- 6. corrupt checkpoints, identical re-run resumes ------------------------------------------
+
+TRAIN = ["--res", "16", "--width", "4", "--batch-size", "4", "--seed", "1", "--quiet"]
+
+
+@pytest.fixture(scope="module")
+def run_dir(world, tmp_path_factory):
+    from relight.cli import main
+    out = tmp_path_factory.mktemp("run") / "r"
+    assert main(["train", "--data", str(world["D"]), "--out", str(out), "--epochs", "1"] + TRAIN) == 0
+    return out
+
+
+CORRUPT = {
+    "empty": lambda good: b"",
+    "garbage": lambda good: b"\x80\x02}q\x00garbage" * 10,
+    "truncated": lambda good: good[: len(good) // 2],
+    "foreign": None,   # a valid torch file that is not a relight checkpoint
+}
+
+
+@pytest.mark.parametrize("kind", sorted(CORRUPT))
+@pytest.mark.parametrize("resume", [True, False])
+def test_corrupt_checkpoint_is_one_line(kind, resume, world, run_dir, tmp_path, capfd):
+    import torch
+    run = tmp_path / "r"
+    shutil.copytree(run_dir, run)
+    good = (run / "checkpoint.pt").read_bytes()
+    if CORRUPT[kind] is None:
+        torch.save({"weights": torch.zeros(3)}, run / "checkpoint.pt")
+    else:
+        (run / "checkpoint.pt").write_bytes(CORRUPT[kind](good))
+    before = tree(tmp_path)
+    # the identical command (epochs 1 -> 2 changes the settings, so that one needs --resume)
+    argv = ["train", "--data", world["D"], "--out", run, "--epochs", "2"] + TRAIN + (["--resume"] if resume else [])
+    code, _, err = cli(argv, capfd)
+    assert_refused(code, err, "checkpoint" if resume else "--resume")
+    assert tree(tmp_path) == before
+
+
+def test_identical_train_command_resumes(world, run_dir, tmp_path, capfd):
+    run = tmp_path / "r"
+    shutil.copytree(run_dir, run)
+    settings = json.loads((run / "settings.json").read_text())
+    settings["epochs"] = 2                       # as if a 2-epoch run was killed after epoch 1
+    (run / "settings.json").write_text(json.dumps(settings))
+    code, out, err = cli(["train", "--data", world["D"], "--out", run, "--epochs", "2"] + TRAIN, capfd)
+    assert code == 0, err
+    with open(run / "log.csv") as f:
+        assert [line.split(",")[0] for line in f.read().splitlines()[1:]] == ["1", "2"]
+    assert not temps_under(run)
+
+
+def test_second_trainer_on_one_run_is_refused(world, run_dir, tmp_path, capfd):
+    from relight.fileio import FolderLock
+    run = tmp_path / "r"
+    shutil.copytree(run_dir, run)
+    with FolderLock(run, "training run"):
+        code, _, err = cli(["train", "--data", world["D"], "--out", run, "--epochs", "2", "--resume"] + TRAIN, capfd)
+    assert_refused(code, err, "another relight process")
+
+
+# --- 7. every numeric option of every verb: zero, negative, NaN, huge ---------------------------
+
+BASE = {
+    "generate": ["generate", "--out", "{tmp}/g"],
+    "render": ["render", "{scene}", "--out", "{tmp}/r.png"],
+    "train": ["train", "--data", "{D}", "--out", "{tmp}/t"],
+    "evaluate": ["evaluate", "--data", "{D}", "--out", "{tmp}/e"],
+    "predict": ["predict", "{photo}", "--out", "{tmp}/p.json"],
+    "compare": ["compare", "{preds}", "--out", "{tmp}/c"],
+    "figure spheres": ["figure", "spheres", "{preds}", "--out", "{tmp}/s"],
+    "figure pole": ["figure", "pole", "{photo}", "{preds}", "--out", "{tmp}/pole.png"],
+    "invert": ["invert", "--scene", "{scene}", "--image", "{exr}", "--out", "{tmp}/i.json"],
+    "baseline": ["baseline", "gray-world", "--data", "{D}", "--out", "{tmp}/b.json"],
+    "probe": ["probe", "--chrome", "{photo}", "--chrome-mask", "{mask}", "--fov", "40", "--out", "{tmp}/pr.json"],
+    "demo": ["demo", "--out", "{tmp}/demo"],
+    "export-blender": ["export-blender", "{scene}", "--out", "{tmp}/x.blend"],
+}
+GENERIC_BAD = ["nan", "inf", "-inf", "1e308", "-1e308", "1e999", "abc", "", "99999999999999999999"]
+# values that are numbers of the right kind but out of range (zero, negative, too big)
+RANGE_BAD = {
+    "--count": ["-1", "1000001"], "--seed": ["-1", "4294967296"], "--res": ["0", "-16", "100000"],
+    "--spp": ["0", "-1"], "--max-depth": ["0"], "--workers": ["-2", "100000"], "--threads": ["0", "-3"],
+    "--light-pan": ["1e9"], "--light-tilt": ["95", "-91", "1e308"], "--rgb": ["0,0,0", "-1,1,1", "1e308,1,1", "1,2"],
+    "--epochs": ["0"], "--batch-size": ["0"], "--lr": ["0", "-1", "2"], "--patience": ["-1"],
+    "--torch-threads": ["0"], "--loss-weights": ["0,0,0", "-1,1,1", "1,1"], "--width": ["0"],
+    "--max-minutes": ["-1"], "--camera-tilt": ["90", "-90", "1e308"], "--limit": ["0", "-1"],
+    "--max-columns": ["0"], "--max-iters": ["0"], "--time-budget": ["0", "-5"],
+    "--fov": ["0", "180", "-1"], "--focal-px": ["0", "-1"], "--target-rmse": ["0", "-0.1", "2"],
+}
+
+
+def _subparsers(parser, path=()):
+    import argparse
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield from _subparsers(sub, path + (name,))
+    if path:
+        yield " ".join(path), parser
+
+
+def numeric_options():
+    """(verb, option) for every option whose value is a number (or numbers)."""
+    from relight.cli import build_parser
+    out = [("render", "--threads")]   # the global option, given before a verb
+    for verb, sub in _subparsers(build_parser()):
+        for action in sub._actions:
+            t = action.type
+            if action.option_strings and t is not None and t is not str and \
+                    (t in (int, float) or getattr(t, "__module__", "") == "relight.commands.argtypes"):
+                out.append((verb, action.option_strings[-1]))
+    return out
+
+
+def test_every_numeric_option_has_a_bounded_type():
+    from relight.cli import build_parser
+    plain = [(verb, a.option_strings[-1]) for verb, sub in _subparsers(build_parser()) for a in sub._actions
+             if a.option_strings and a.type in (int, float)]
+    assert not plain, f"options with an unbounded int/float type: {plain}"
+    opts = numeric_options()
+    assert {verb for verb, _ in opts} <= set(BASE)
+    missing = {o for _, o in opts} - set(RANGE_BAD) - {"--threads"}
+    assert not missing, f"numeric options without out-of-range cases: {missing}"
+
+
+def _sweep():
+    cases = []
+    for verb, opt in numeric_options():
+        for value in GENERIC_BAD + RANGE_BAD.get(opt, []):
+            cases.append((verb, opt, value))
+    return cases
+
+
+@pytest.mark.parametrize("verb,opt,value", _sweep(), ids=lambda x: str(x))
+def test_bad_number_is_one_line(verb, opt, value, world, tmp_path, capfd):
+    base = BASE[verb]
+    argv = (["--threads", value] + base) if opt == "--threads" and verb == "render" else base + [opt, value]
+    refused_unchanged(argv, world, tmp_path, capfd)
+    assert os.listdir(tmp_path) == []
+
+
+@pytest.mark.parametrize("argv", [
+    ["generate", "--out", "{tmp}/g", "--res", "100000"],
+    ["--threads", "-3", "render", "{scene}", "--out", "{tmp}/r.png"],
+    ["render", "{scene}", "--out", "{tmp}/r.png", "--light-tilt", "95"],
+    ["train", "--data", "{D}", "--out", "{tmp}/t", "--seed", "-1"],
+])
+def test_bad_number_through_the_console_script(argv, world, tmp_path):
+    before = tree(world["root"])
+    proc = subprocess.run(CLI + fill(argv, world, tmp_path), capture_output=True, text=True,
+                          timeout=PROCESS_TIMEOUT_S)
+    assert_refused(proc.returncode, proc.stderr)
+    assert tree(world["root"]) == before and os.listdir(tmp_path) == []
