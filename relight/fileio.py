@@ -211,6 +211,14 @@ def write_text(path, text: str, inputs=()) -> None:
     atomic_write(path, w, inputs)
 
 
+def write_bytes(path, data: bytes, inputs=()) -> None:
+    """Atomically write ``data`` to ``path``."""
+    def w(tmp):
+        with open(tmp, "wb") as f:
+            f.write(data)
+    atomic_write(path, w, inputs)
+
+
 def write_json(path, data, inputs=(), **kw) -> None:
     """Atomically write ``data`` as JSON (indent 1 unless given)."""
     import json

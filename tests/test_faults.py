@@ -315,7 +315,20 @@ def test_compare_overflowing_rgb_is_one_line_and_not_doubled(world, tmp_path, ca
 
 # --- 3. one writer per dataset, duplicates ----------------------------------------------------
 
-def test_second_writer_is_refused(tmp_path):
+def test_second_writer_is_refused(world, tmp_path):
+    # another process holds the dataset's lock (here: this one): generate refuses it
+    from relight.fileio import FolderLock
+    data = tmp_path / "D"
+    shutil.copytree(world["D"], data)
+    before = tree(data)
+    with FolderLock(data, "dataset"):
+        proc = subprocess.run(generate_cmd(data, 8, 3), capture_output=True, text=True, timeout=PROCESS_TIMEOUT_S)
+    assert_refused(proc.returncode, proc.stderr, "another relight process")
+    assert tree(data) == before
+
+
+@pytest.mark.slow
+def test_two_generate_processes(tmp_path):
     out = tmp_path / "ds"
     first = subprocess.Popen(generate_cmd(out, 2000), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
@@ -399,6 +412,7 @@ def _kill_and_resume(tmp_path, count, workers):
     return out
 
 
+@pytest.mark.slow
 def test_kill_9_single_process_generate(tmp_path):
     _kill_and_resume(tmp_path, 40, workers=1)
 
@@ -643,7 +657,7 @@ RANGE_BAD = {
     "--torch-threads": ["0"], "--loss-weights": ["0,0,0", "-1,1,1", "1,1"], "--width": ["0"],
     "--max-minutes": ["-1"], "--camera-tilt": ["90", "-90", "1e308"], "--limit": ["0", "-1"],
     "--max-columns": ["0"], "--max-iters": ["0"], "--time-budget": ["0", "-5"],
-    "--fov": ["0", "180", "-1"], "--focal-px": ["0", "-1"], "--target-rmse": ["0", "-0.1", "2"],
+    "--kappa-weight": ["-1"], "--fov": ["0", "180", "-1"], "--focal-px": ["0", "-1"], "--target-rmse": ["0", "-0.1", "2"],
 }
 
 

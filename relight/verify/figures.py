@@ -50,10 +50,9 @@ def diff_limit(diffs) -> float:
 
 
 def _atomic_savefig(fig, path: str, **kw) -> None:
-    base, ext = os.path.splitext(path)
-    tmp = f"{base}.tmp{os.getpid()}{ext}"
-    fig.savefig(tmp, **kw)
-    os.replace(tmp, path)
+    from relight.fileio import atomic_write
+    kw.setdefault("format", os.path.splitext(path)[1].lstrip(".").lower() or "png")
+    atomic_write(path, lambda tmp: fig.savefig(tmp, **kw))
 
 
 def _errors_text(item) -> str:
