@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from relight import frames
-from relight.fileio import FolderLock, atomic_write, remove_temps, write_json
+from relight.fileio import FolderLock, remove_temps, write_bytes, write_json
 from relight.scene.sampling import GeneratorConfig, sample_scene, split_of
 from relight.scene.spec import SceneSpec
 
@@ -134,7 +134,7 @@ def read_manifest(dataset_dir: str | os.PathLike, repair: bool = False) -> list[
     if repair and (good_end < len(data) or duplicates):
         text = b"".join((json.dumps(r) + "\n").encode() for r in records) if duplicates else data[:good_end]
         if duplicates:
-            atomic_write(path, lambda tmp: open(tmp, "wb").write(text))
+            write_bytes(path, text)
         else:
             with open(path, "r+b") as f:
                 f.truncate(good_end)
@@ -336,7 +336,7 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
             if not existed:
                 shutil.rmtree(out, ignore_errors=True)
             elif old_card is not None:
-                atomic_write(card_path, lambda tmp: open(tmp, "wb").write(old_card))
+                write_bytes(card_path, old_card)
             elif os.path.isfile(card_path) and not _has_records(out):
                 os.remove(card_path)
         raise
