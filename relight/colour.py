@@ -26,7 +26,7 @@ import numpy as np
 
 __all__ = [
     "CCT_RANGE_K", "DUV_MAX", "CCT_VALID_K", "DUV_VALID_MAX",
-    "cct_duv_to_xy", "xy_to_rgb", "cct_duv_to_rgb", "rgb_to_cct_duv",
+    "cct_duv_to_xy", "xy_to_rgb", "cct_duv_to_rgb", "rgb_to_cct_duv", "rgb_to_cct_duv_near_locus",
     "sample_light_colour", "srgb_encode", "srgb_decode",
 ]
 
@@ -153,6 +153,27 @@ def rgb_to_cct_duv(rgb) -> tuple[np.ndarray, np.ndarray]:
         uv = c.xy_to_UCS_uv(xyz[..., :2] / total[..., None])
         out = np.asarray(c.temperature.uv_to_CCT(uv, method=CCT_METHOD), dtype=np.float64)
     return out[..., 0], out[..., 1]
+
+
+def rgb_to_cct_duv_near_locus(rgb) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`rgb_to_cct_duv` where it is meaningful, NaN elsewhere: ``(cct_k, duv)``
+    arrays of shape ``(...)`` for ``rgb`` ``(..., 3)`` (linear sRGB, any scale), NaN
+    where the colour is far from the Planckian locus (``|duv| > DUV_VALID_MAX`` = 0.05,
+    or CCT outside :data:`CCT_VALID_K` = [1000, 25000] K) or has no positive
+    luminance (e.g. a grey-free saturated blue)."""
+    rgb = np.asarray(rgb, dtype=np.float64)
+    if rgb.shape[-1:] != (3,):
+        raise ValueError(f"expected rgb with last axis 3, got shape {rgb.shape}")
+    flat = rgb.reshape(-1, 3)
+    cct, duv = np.full(len(flat), np.nan), np.full(len(flat), np.nan)
+    xyz = np.where(np.isfinite(flat), flat, 0.0) @ _rgb_to_xyz_matrix().T
+    ok = np.all(np.isfinite(flat), axis=1) & (xyz.sum(axis=1) > 0) & (xyz[:, 1] > 0)
+    if np.any(ok):
+        cct[ok], duv[ok] = rgb_to_cct_duv(flat[ok])
+    far = ~(np.isfinite(cct) & np.isfinite(duv) & (np.abs(duv) <= DUV_VALID_MAX)
+            & (cct >= CCT_VALID_K[0]) & (cct <= CCT_VALID_K[1]))
+    cct[far], duv[far] = np.nan, np.nan
+    return cct.reshape(rgb.shape[:-1]), duv.reshape(rgb.shape[:-1])
 
 
 def sample_light_colour(rng: np.random.Generator) -> tuple[float, float, np.ndarray]:

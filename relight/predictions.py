@@ -74,6 +74,29 @@ def _finite_list(value, n: int, what: str, entry: str) -> tuple[float, ...]:
     return tuple(out)
 
 
+def _optional_number(extra: dict, key: str, entry: str, lo: float, hi: float, nullable: bool,
+                     open_lo: bool = False) -> None:
+    if key not in extra or (nullable and extra[key] is None):
+        return
+    v = extra[key]
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
+            or not (lo < v if open_lo else lo <= v) or v > hi:
+        null = " or null" if nullable else ""
+        raise PredictionsError(f"entry {entry}: {key} must be a number in {'(' if open_lo else '['}{lo:g}, {hi:g}]"
+                               f"{null}, got {v!r}")
+
+
+def _check_optional(extra: dict, entry: str) -> None:
+    """The optional fields of the conventions: ``cone90_deg`` in (0, 180], ``kappa`` > 0,
+    ``cct_k`` in [1000, 25000] K and ``duv`` in [-0.05, 0.05], both null or neither."""
+    _optional_number(extra, "cone90_deg", entry, 0.0, 180.0, False, open_lo=True)
+    _optional_number(extra, "kappa", entry, 0.0, math.inf, False, open_lo=True)
+    _optional_number(extra, "cct_k", entry, 1000.0, 25000.0, True)
+    _optional_number(extra, "duv", entry, -0.05, 0.05, True)
+    if ("cct_k" in extra) != ("duv" in extra) or (extra.get("cct_k") is None) != (extra.get("duv") is None):
+        raise PredictionsError(f"entry {entry}: cct_k and duv go together (both numbers or both null)")
+
+
 def parse_entry(raw, index: int, colour_only: bool = False) -> Prediction:
     """Validate one raw JSON entry (``index`` is its position, for messages); with
     ``colour_only`` the entry needs only ``id`` and ``rgb``."""
@@ -86,6 +109,7 @@ def parse_entry(raw, index: int, colour_only: bool = False) -> Prediction:
     if "/" in pid or "\\" in pid or pid in (".", "..") or "\0" in pid:
         raise PredictionsError(f"entry {name}: id must be a plain name, not a path")
     extra = {k: v for k, v in raw.items() if k not in ("id", "pan_deg", "tilt_deg", "rgb", "y")}
+    _check_optional(extra, name)
     if colour_only:
         if "rgb" not in raw:
             raise PredictionsError(f"entry {name}: missing rgb")

@@ -12,12 +12,23 @@ Sized for a 2-core CPU (0.47 M parameters, 0.127 GFLOP per 128 px image forward)
 see ``benchmarks/bench_network.py``. The input resolution is a parameter: an adaptive
 pooling before the embedding keeps the parameter count independent of it.
 
+Two encoders, chosen by :attr:`NetConfig.arch` and recorded in the model file:
+``"small"`` (:data:`ARCH_NAME`, the one above) and ``"paper"``
+(:data:`PAPER_ARCH_NAME`, :class:`PaperEncoder`: the paper's five modules at
+Inception-v3 widths, several million parameters, most of them in the embedding so the
+FLOPs stay CPU-sized).
+
 Input: ``(N, 3, res, res)`` float32, 8-bit sRGB scaled to [0, 1] (see
 :func:`relight.net.data.prepare_srgb8`). Output: ``(N, 7)``; the sin/cos pairs are raw
 (not normalised; decoding uses atan2) and the colour is positive (softplus), any scale.
+With :attr:`NetConfig.kappa_head` a fourth head gives the von Mises-Fisher
+concentration ``kappa`` of the light direction (:meth:`LightNet.forward_with_kappa`;
+see :mod:`relight.net.uncertainty`). It reads the embedding *detached*, so it learns
+to predict the direction error without changing what the paper's terms train.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 
 import torch
@@ -25,7 +36,12 @@ from torch import nn
 from torch.nn import functional as F
 
 ARCH_NAME = "sid2-inception-small/v1"
+PAPER_ARCH_NAME = "sid2-inception-paper/v1"
+ARCHES = {"small": ARCH_NAME, "paper": PAPER_ARCH_NAME}   # NetConfig.arch -> name in model files
 COLOUR_FLOOR = 1e-4  # added to the softplus colour output so rgb is never exactly 0
+KAPPA_INIT = 20.0      # kappa of a zero head output (90% cone of about 28 degrees)
+LOG_KAPPA_RANGE = (math.log(1e-3), math.log(1e5))   # kappa clamped to [1e-3, 1e5]
+PAPER_SIZES = {"embed": 1024, "head_hidden": 256}   # NetConfig.for_arch("paper") defaults
 
 
 @dataclass(frozen=True)
@@ -38,12 +54,16 @@ class NetConfig:
         embed: embedding size shared by the three heads.
         head_hidden: hidden units in each head.
         grid: spatial size of the feature map flattened into the embedding.
+        arch: encoder, a key of :data:`ARCHES` ("small" or "paper").
+        kappa_head: predict the vMF concentration of the direction too.
     """
     res: int = 128
     width: int = 32
     embed: int = 256
     head_hidden: int = 128
     grid: int = 4
+    arch: str = "small"
+    kappa_head: bool = True
 
     def __post_init__(self):
         for name in ("res", "width", "embed", "head_hidden", "grid"):
@@ -52,13 +72,32 @@ class NetConfig:
                 raise ValueError(f"NetConfig.{name} must be a positive integer, got {v!r}")
         if self.res < 16:
             raise ValueError(f"NetConfig.res must be >= 16 pixels, got {self.res}")
+        if self.arch not in ARCHES:
+            raise ValueError(f"NetConfig.arch must be one of {', '.join(ARCHES)}, got {self.arch!r}")
+        if not isinstance(self.kappa_head, bool):
+            raise ValueError(f"NetConfig.kappa_head must be true or false, got {self.kappa_head!r}")
+
+    @classmethod
+    def for_arch(cls, arch: str = "small", **kwargs) -> "NetConfig":
+        """Config of a named architecture with its default sizes (``kwargs`` override)."""
+        defaults = PAPER_SIZES if arch == "paper" else {}
+        return cls(arch=arch, **(defaults | kwargs))
+
+    @property
+    def arch_name(self) -> str:
+        """The architecture's name in model files, e.g. ``sid2-inception-small/v1``."""
+        return ARCHES[self.arch]
 
     def to_dict(self) -> dict:
         return asdict(self)
 
     @classmethod
     def from_dict(cls, d: dict) -> "NetConfig":
+        """Config of a stored dict; files written before ``arch`` / ``kappa_head``
+        existed are the small encoder without a kappa head."""
         known = {k: d[k] for k in cls.__dataclass_fields__ if k in d}
+        known.setdefault("arch", "small")
+        known.setdefault("kappa_head", False)
         return cls(**known)
 
 
@@ -98,6 +137,102 @@ class SplitInception(nn.Module):
         return torch.cat([self.b1(x), self.b3(x), self.b5(x), self.bp(pooled)], dim=1)
 
 
+class FactorisedInception7(nn.Module):
+    """Inception-v3 module of the middle grid ("B", 17 x 17 there): a 7 x 7 convolution
+    factorised into 1 x 7 then 7 x 1.
+
+    Branches: 1x1; 1x1 -> 1x7 -> 7x1; 1x1 -> (7x1 -> 1x7) twice; 3x3 average pool -> 1x1.
+    Spatial size is kept; output channels = ``4 * c_branch``.
+    """
+
+    def __init__(self, c_in: int, c_branch: int, c_mid: int):
+        super().__init__()
+        self.b1 = ConvBN(c_in, c_branch, 1)
+        self.b7 = nn.Sequential(ConvBN(c_in, c_mid, 1), ConvBN(c_mid, c_mid, (1, 7)),
+                                ConvBN(c_mid, c_branch, (7, 1)))
+        self.b77 = nn.Sequential(ConvBN(c_in, c_mid, 1), ConvBN(c_mid, c_mid, (7, 1)),
+                                 ConvBN(c_mid, c_mid, (1, 7)), ConvBN(c_mid, c_mid, (7, 1)),
+                                 ConvBN(c_mid, c_branch, (1, 7)))
+        self.bp = ConvBN(c_in, c_branch, 1)
+        self.out_channels = 4 * c_branch
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        pooled = F.avg_pool2d(x, 3, stride=1, padding=1, count_include_pad=False)
+        return torch.cat([self.b1(x), self.b7(x), self.b77(x), self.bp(pooled)], dim=1)
+
+
+class ExpandedInception(nn.Module):
+    """Inception-v3 module of the coarsest grid ("C", 8 x 8 there): the expanded filter
+    bank, 1 x 3 and 3 x 1 side by side instead of one after the other.
+
+    Branches: 1x1 (c); 1x1 -> [1x3, 3x1] (2c); 1x1 -> 3x3 -> [1x3, 3x1] (2c); 3x3
+    average pool -> 1x1 (c). Spatial size is kept; output channels = ``6 * c``.
+    """
+
+    def __init__(self, c_in: int, c: int, c_mid: int):
+        super().__init__()
+        self.b1 = ConvBN(c_in, c, 1)
+        self.b3_in = ConvBN(c_in, c_mid, 1)
+        self.b3_a, self.b3_b = ConvBN(c_mid, c, (1, 3)), ConvBN(c_mid, c, (3, 1))
+        self.b33_in = nn.Sequential(ConvBN(c_in, c_mid, 1), ConvBN(c_mid, c_mid, 3))
+        self.b33_a, self.b33_b = ConvBN(c_mid, c, (1, 3)), ConvBN(c_mid, c, (3, 1))
+        self.bp = ConvBN(c_in, c, 1)
+        self.out_channels = 6 * c
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        pooled = F.avg_pool2d(x, 3, stride=1, padding=1, count_include_pad=False)
+        b3, b33 = self.b3_in(x), self.b33_in(x)
+        return torch.cat([self.b1(x), self.b3_a(b3), self.b3_b(b3), self.b33_a(b33), self.b33_b(b33),
+                          self.bp(pooled)], dim=1)
+
+
+class GridReduction(nn.Module):
+    """Inception-v3 grid-size reduction: a strided convolution (1x1 -> 3x3 / 2) and a
+    3x3 / 2 max pool side by side, so the grid halves without a representational
+    bottleneck. Output channels = ``c_in + c_out``.
+    """
+
+    def __init__(self, c_in: int, c_red: int, c_out: int):
+        super().__init__()
+        self.conv = nn.Sequential(ConvBN(c_in, c_red, 1), ConvBN(c_red, c_out, 3, stride=2))
+        self.out_channels = c_in + c_out
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return torch.cat([self.conv(x), F.max_pool2d(x, 3, stride=2, padding=1)], dim=1)
+
+
+class PaperEncoder(nn.Module):
+    """The paper's encoder at Inception-v3 proportions: five modules of inception,
+    convolution and pooling layers (spatial size for res 128, ``w`` = width 32).
+
+      1. stem: conv 3x3 /2 + conv 3x3 /2                           -> 32 x 32 x 2w
+      2. max pool /2 + split inception (1x3, 3x1)                   -> 16 x 16 x 6w
+      3. grid reduction + factorised inception (1x7, 7x1)           -> 8 x 8 x 12w
+      4. grid reduction + expanded inception (1x3 beside 3x1)       -> 4 x 4 x 24w
+      5. conv 1x1                                                   -> 4 x 4 x 8w
+    The embedding (a linear layer on the flattened grid, in :class:`LightNet`) holds
+    most of the parameters; the convolutions run on small grids, which keeps the
+    FLOPs near the small encoder's.
+    """
+
+    def __init__(self, w: int = 32):
+        super().__init__()
+        self.stem = nn.Sequential(ConvBN(3, w, 3, stride=2), ConvBN(w, 2 * w, 3, stride=2))
+        self.inc1 = SplitInception(2 * w, 3 * w // 2)                                   # 6w
+        self.red1 = GridReduction(self.inc1.out_channels, 2 * w, 4 * w)                  # 10w
+        self.inc2 = FactorisedInception7(self.red1.out_channels, 3 * w, 2 * w)          # 12w
+        self.red2 = GridReduction(self.inc2.out_channels, 3 * w, 6 * w)                  # 18w
+        self.inc3 = ExpandedInception(self.red2.out_channels, 4 * w, 4 * w)             # 24w
+        self.reduce = ConvBN(self.inc3.out_channels, 8 * w, 1)
+        self.out_channels = 8 * w
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        x = self.inc1(F.max_pool2d(self.stem(x), 2))
+        x = self.inc2(self.red1(x))
+        x = self.inc3(self.red2(x))
+        return self.reduce(x)
+
+
 def _head(c_in: int, hidden: int, c_out: int) -> nn.Sequential:
     return nn.Sequential(nn.Linear(c_in, hidden), nn.ReLU(inplace=True), nn.Linear(hidden, c_out))
 
@@ -118,17 +253,27 @@ class LightNet(nn.Module):
         super().__init__()
         self.config = config = config or NetConfig()
         w = config.width
-        self.stem = nn.Sequential(ConvBN(3, w, 3, stride=2), ConvBN(w, w, 3), nn.MaxPool2d(2))
-        self.inc1 = SplitInception(w, w // 2 + w // 4)            # 4 * 24 = 96 for w = 32
-        self.inc2 = SplitInception(self.inc1.out_channels, w)      # 128
-        self.inc3 = SplitInception(self.inc2.out_channels, w + w // 2)  # 192
-        self.reduce = ConvBN(self.inc3.out_channels, 2 * w, 1)    # 64
-        self.pool = nn.MaxPool2d(2)
+        if config.arch == "small":
+            self.stem = nn.Sequential(ConvBN(3, w, 3, stride=2), ConvBN(w, w, 3), nn.MaxPool2d(2))
+            self.inc1 = SplitInception(w, w // 2 + w // 4)            # 4 * 24 = 96 for w = 32
+            self.inc2 = SplitInception(self.inc1.out_channels, w)      # 128
+            self.inc3 = SplitInception(self.inc2.out_channels, w + w // 2)  # 192
+            self.reduce = ConvBN(self.inc3.out_channels, 2 * w, 1)    # 64
+            self.pool = nn.MaxPool2d(2)
+            c_features = 2 * w
+        else:
+            self.encoder = PaperEncoder(w)
+            c_features = self.encoder.out_channels
         self.grid = nn.AdaptiveAvgPool2d(config.grid)
-        self.embed = nn.Sequential(nn.Linear(2 * w * config.grid ** 2, config.embed), nn.ReLU(inplace=True))
+        self.embed = nn.Sequential(nn.Linear(c_features * config.grid ** 2, config.embed), nn.ReLU(inplace=True))
         self.pan_head = _head(config.embed, config.head_hidden, 2)
         self.tilt_head = _head(config.embed, config.head_hidden, 2)
         self.colour_head = _head(config.embed, config.head_hidden, 3)
+        if config.kappa_head:
+            self.kappa_head = _head(config.embed, config.head_hidden, 1)
+            # temperature of the calibrated kappa (kappa / T), fitted on val: see
+            # relight.net.uncertainty.fit_temperature; stored with the weights
+            self.register_buffer("kappa_temperature", torch.ones(()))
         self.reset_parameters()
 
     def reset_parameters(self) -> None:
@@ -146,17 +291,42 @@ class LightNet(nn.Module):
         """``(N, 3, H, W)`` -> embedding ``(N, embed)``."""
         if x.ndim != 4 or x.shape[1] != 3:
             raise ValueError(f"expected images of shape (N, 3, H, W), got {tuple(x.shape)}")
-        x = self.stem(x)
-        x = self.pool(self.inc1(x))
-        x = self.pool(self.inc2(x))
-        x = self.reduce(self.inc3(x))
+        if self.config.arch == "small":
+            x = self.stem(x)
+            x = self.pool(self.inc1(x))
+            x = self.pool(self.inc2(x))
+            x = self.reduce(self.inc3(x))
+        else:
+            x = self.encoder(x)
         return self.embed(torch.flatten(self.grid(x), 1))
+
+    def _light(self, e: torch.Tensor) -> torch.Tensor:
+        rgb = F.softplus(self.colour_head(e)) + COLOUR_FLOOR
+        return torch.cat([self.pan_head(e), self.tilt_head(e), rgb], dim=1)
+
+    @property
+    def has_kappa(self) -> bool:
+        """True when the network predicts a direction concentration (kappa head)."""
+        return self.config.kappa_head
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """``(N, 3, H, W)`` in [0, 1] -> ``(N, 7)`` = pan sin/cos, tilt sin/cos, rgb."""
+        return self._light(self.encode(x))
+
+    def forward_with_kappa(self, x: torch.Tensor, calibrated: bool = True):
+        """``(y (N, 7), kappa (N,))``; kappa is the vMF concentration of the light
+        direction (1 / steradian scale; ``None`` without a kappa head), divided by the
+        fitted temperature when ``calibrated``. The kappa head reads the embedding
+        detached: its loss does not reach the encoder or the other heads."""
         e = self.encode(x)
-        rgb = F.softplus(self.colour_head(e)) + COLOUR_FLOOR
-        return torch.cat([self.pan_head(e), self.tilt_head(e), rgb], dim=1)
+        y = self._light(e)
+        if not self.config.kappa_head:
+            return y, None
+        log_kappa = self.kappa_head(e.detach()).squeeze(1) + math.log(KAPPA_INIT)
+        kappa = torch.exp(log_kappa.clamp(*LOG_KAPPA_RANGE))
+        if calibrated:
+            kappa = kappa / self.kappa_temperature
+        return y, kappa
 
 
 def count_parameters(model: nn.Module) -> int:

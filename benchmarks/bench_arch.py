@@ -1,0 +1,95 @@
+"""The two encoders side by side: parameters, FLOPs, model-file size, single-image CPU
+latency (1 and 2 torch threads) and training images/s, at 128 px.
+
+Both networks are timed in alternation within one run (the machine is shared, so the
+absolute milliseconds move with its load; the paper / small ratios hold). The minimum
+is the latency of an idle core; the median includes the load of the moment.
+
+    .venv/bin/python benchmarks/bench_arch.py [--threads 1 2] [--repeats 60]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import tempfile
+import time
+
+import torch
+
+from relight.net.io import save_model
+from relight.net.loss import light_loss
+from relight.net.model import ARCHES, LightNet, NetConfig, count_parameters, flops_per_image
+
+RES = 128
+
+
+def _latency_s(nets: dict, threads: int, repeats: int) -> dict:
+    """Per-network list of single-image forward times, measured in alternation."""
+    torch.set_num_threads(threads)
+    one = torch.rand(1, 3, RES, RES)
+    times = {k: [] for k in nets}
+    with torch.no_grad():
+        for net in nets.values():
+            for _ in range(5):
+                net.forward_with_kappa(one)
+        for _ in range(repeats):
+            for k, net in nets.items():
+                t0 = time.perf_counter()
+                net.forward_with_kappa(one)
+                times[k].append(time.perf_counter() - t0)
+    return times
+
+
+def _train_img_s(net: LightNet, threads: int, steps: int, batch: int = 16) -> float:
+    torch.set_num_threads(threads)
+    net.train()
+    opt = torch.optim.Adam(net.parameters(), lr=2e-4)
+    x, y = torch.rand(batch, 3, RES, RES), torch.rand(batch, 7) + 0.1
+    times = []
+    for _ in range(steps + 1):
+        t0 = time.perf_counter()
+        loss = light_loss(net(x), y)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        times.append(time.perf_counter() - t0)
+    net.eval()
+    return batch / statistics.median(times[1:])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--threads", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--repeats", type=int, default=60)
+    ap.add_argument("--train-steps", type=int, default=5)
+    args = ap.parse_args()
+    torch.manual_seed(0)
+    nets = {arch: LightNet(NetConfig.for_arch(arch, res=RES)).eval() for arch in ARCHES}
+    print(f"| arch | name | parameters | GFLOP / image | model file (MB) |")
+    print("|---|---|---:|---:|---:|")
+    with tempfile.TemporaryDirectory() as tmp:
+        for arch, net in nets.items():
+            path = os.path.join(tmp, f"{arch}.safetensors")
+            save_model(path, net)
+            print(f"| {arch} | {net.config.arch_name} | {count_parameters(net):,} | "
+                  f"{flops_per_image(net) / 1e9:.3f} | {os.path.getsize(path) / 1e6:.1f} |")
+    print("\n| threads | arch | latency min (ms) | latency median (ms) | training img/s (batch 16) |")
+    print("|---:|---|---:|---:|---:|")
+    ratios = []
+    for th in args.threads:
+        times = _latency_s(nets, th, args.repeats)
+        train = {k: _train_img_s(n, th, args.train_steps) for k, n in nets.items()}
+        for k in nets:
+            print(f"| {th} | {k} | {1e3 * min(times[k]):.1f} | {1e3 * statistics.median(times[k]):.1f} | "
+                  f"{train[k]:.1f} |")
+        ratios.append((th, statistics.median(times["paper"]) / statistics.median(times["small"]),
+                       train["small"] / train["paper"]))
+    print("\n| threads | paper / small latency (median) | small / paper training img/s |")
+    print("|---:|---:|---:|")
+    for th, lat, tr in ratios:
+        print(f"| {th} | {lat:.2f} | {tr:.2f} |")
+
+
+if __name__ == "__main__":
+    main()
