@@ -43,17 +43,18 @@ with weight ``|du/ds| * total_length / n``. ``|grad_u G|`` and ``|du/ds|`` are c
 differences of closed-form maps onto the receiver's tangent plane (exact up to float64
 rounding). Only direct light's shadows are differentiated at their edges; shadows seen
 through indirect bounces, and the jumps at an object's own tessellated terminator, are
-left out (measured small by ``benchmarks/bench_gradients.py``).
+left out (together within the reference's noise in ``benchmarks/bench_gradients.py``).
 
 Why edge sampling (measured, ``benchmarks/bench_gradients.py``, 6 generated scenes with
 large moving cast shadows, 64 px / 32 spp, against a 512 spp central difference): the
 shading term alone (ours or Mitsuba's ``path`` AD, which agree) has median magnitude
 ratio 0.24 and is 8 deg off; with the edge term the median angle is 0.42 deg and the
 ratio 0.997 at 0.84x the cost of the 64 px finite-difference gradient, i.e. at the noise
-floor of the reference itself (the 64 px finite difference is 0.28 deg from it). A small
-spherical area light with Mitsuba's ``direct_projective`` also matched the reference
-but cost ~100 s per gradient at 64 px; edge sampling needs a few thousand rays because a
-point light's shadow edges are known in closed form (silhouette edges seen from it).
+floor of the reference itself (the 64 px finite difference is 0.28 deg from it). An
+earlier study (issue 5) found that a small spherical area light with Mitsuba's
+``direct_projective`` matched the reference but cost ~100 s per gradient at 64 px; edge
+sampling needs only a few thousand rays because a point light's shadow edges are known
+in closed form (the occluders' silhouette edges seen from the light).
 Direct light differentiated at the first indirect vertex too (``bounces=1``, default)
 gave median angle 0.42 deg against 0.62 without (4 scenes) for 1.2x the time; 16 edge
 samples per pixel row were as good as 256 (the edge term is not the noise floor).
