@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import os
 
-import numpy as np
+from relight.commands.argtypes import camera_tilt, positive_float
 
 
 def add_commands(sub) -> None:
@@ -13,44 +13,67 @@ def add_commands(sub) -> None:
                                    "shading-based direction) from the diffuse sphere. Writes a "
                                    "relight.predictions/v1 file.")
     p.add_argument("--chrome", help="image with a chrome (mirror) sphere")
+    p.add_argument("--chrome-circle", type=circle, help="CX,CY,R: the chrome sphere's outline in pixels "
+                   "(x right, y down, origin top-left, pixel centres at +0.5); refined on the image")
     p.add_argument("--chrome-mask", help="mask image, white where the chrome sphere is")
-    p.add_argument("--diffuse", help="image with a diffuse sphere (gives the colour)")
+    p.add_argument("--diffuse", help="image with a diffuse sphere (gives the colour); may be the chrome image")
+    p.add_argument("--diffuse-circle", type=circle, help="CX,CY,R: the diffuse sphere's outline in pixels")
     p.add_argument("--diffuse-mask", help="mask image, white where the diffuse sphere is")
-    p.add_argument("--camera-tilt", type=float, default=0.0,
+    proj = p.add_mutually_exclusive_group()
+    proj.add_argument("--fov", type=positive_float, help="perspective camera: horizontal field of view "
+                      "(across the image width) in degrees")
+    proj.add_argument("--focal-px", type=positive_float, help="perspective camera: focal length in pixels")
+    proj.add_argument("--orthographic", action="store_true",
+                      help="a far camera: parallel view rays (the default when no --fov/--focal-px)")
+    p.add_argument("--camera-tilt", type=camera_tilt, default=None,
                    help="camera tilt in degrees used to express the direction as pan/tilt (default 0)")
+    p.add_argument("--linear", action="store_true",
+                   help="PNG/TIFF pixels are linear (e.g. 16-bit measurement data); default: sRGB")
     p.add_argument("--id", default=None, help="prediction id (default: the image's file name)")
     p.add_argument("--out", required=True, help="predictions file to write")
+    p.add_argument("--qa", default=None, help="write a QA overlay PNG (outline, highlight, normal, direction)")
     p.set_defaults(func=cmd_probe)
 
 
-def _mask(path: str) -> np.ndarray:
-    from relight.render import read_image
-    image, _ = read_image(path)
-    return image.mean(-1) > 0.5
+def circle(text: str) -> tuple[float, float, float]:
+    """``CX,CY,R`` in pixels: three finite numbers, R > 0."""
+    import argparse
+    import math
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 3 or not all(math.isfinite(v) for v in values) or values[2] <= 0:
+        raise argparse.ArgumentTypeError(f"expected CX,CY,R (pixels, R > 0), got {text!r}")
+    return values
 
 
 def cmd_probe(args) -> int:
-    from relight import probes
+    from relight.fileio import check_file_target, check_outputs
     from relight.predictions import write_predictions
-    from relight.render import read_image
-    if not args.chrome and not args.diffuse:
-        raise probes.ProbeError("give --chrome (direction) and/or --diffuse (colour)")
-    direction, rgb, method = None, np.ones(3) / np.sqrt(3), []
-    if args.diffuse:
-        if not args.diffuse_mask:
-            raise probes.ProbeError("--diffuse needs --diffuse-mask")
-        direction, rgb = probes.diffuse_light(read_image(args.diffuse)[0], _mask(args.diffuse_mask))
-        method.append("diffuse")
-    if args.chrome:
-        if not args.chrome_mask:
-            raise probes.ProbeError("--chrome needs --chrome-mask")
-        direction = probes.chrome_light_direction(read_image(args.chrome)[0], _mask(args.chrome_mask))
-        method.append("chrome")
-    pan, tilt = probes.camera_to_pan_tilt(direction, args.camera_tilt)
+    from relight.probe_run import ProbeConfig, run_probe, write_qa
+    inputs = [args.chrome, args.chrome_mask, args.diffuse, args.diffuse_mask]
+    check_outputs([args.out, args.qa], inputs)
+    check_file_target(args.out)
+    if args.qa:
+        check_file_target(args.qa)
+    cfg = ProbeConfig(chrome=args.chrome, chrome_circle=args.chrome_circle, chrome_mask=args.chrome_mask,
+                      diffuse=args.diffuse, diffuse_circle=args.diffuse_circle, diffuse_mask=args.diffuse_mask,
+                      fov_deg=args.fov, focal_px=args.focal_px, camera_tilt_deg=args.camera_tilt,
+                      linear=args.linear)
+    result = run_probe(cfg)
     ident = args.id or os.path.splitext(os.path.basename(args.chrome or args.diffuse))[0]
-    entry = {"id": ident, "pan_deg": pan, "tilt_deg": tilt, "rgb": [float(c) for c in rgb],
-             "to_light_camera": [float(c) for c in direction], "method": "+".join(method)}
-    write_predictions(args.out, [entry], camera_tilt_deg=args.camera_tilt)
-    print(f"{ident}: pan_rel {pan:.1f} deg, tilt {tilt:.1f} deg, rgb "
-          f"({rgb[0]:.3f}, {rgb[1]:.3f}, {rgb[2]:.3f}) [{'+'.join(method)}] -> {args.out}")
+    entry = {"id": ident, **result.entry}
+    meta = {"camera_tilt_deg": args.camera_tilt if args.camera_tilt is not None else 0.0,
+            "settings": {k: v for k, v in vars(args).items() if k != "func"}}
+    if args.camera_tilt is None:
+        meta["camera_tilt_note"] = "no --camera-tilt given: pan_deg/tilt_deg assume a level camera (tilt 0)"
+    if args.qa:
+        write_qa(args.qa, result, title=ident)
+    write_predictions(args.out, [entry], **meta)
+    rgb, d = entry["rgb"], entry["to_light_camera"]
+    quality = f", ~{entry['quality_deg']:.1f} deg" if "quality_deg" in entry else ""
+    print(f"{ident}: to_light_camera ({d[0]:+.3f}, {d[1]:+.3f}, {d[2]:+.3f}), pan_rel {entry['pan_deg']:.1f} deg, "
+          f"tilt {entry['tilt_deg']:.1f} deg, rgb ({rgb[0]:.3f}, {rgb[1]:.3f}, {rgb[2]:.3f}) "
+          f"[{entry['method']}{quality}] -> {args.out}")
     return 0

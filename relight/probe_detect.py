@@ -1,0 +1,284 @@
+"""Finding probe spheres in a photograph: image loading, sub-pixel outline refinement from
+image edges, and automatic detection of the chrome and the diffuse sphere.
+
+Outline refinement: along radial lines through the sphere's outline guess, the strongest
+colour edge (the norm of the RGB derivative of the linear image, clipped and smoothed by
+:data:`EDGE_SIGMA_PX`) is located to a fraction of a pixel (parabola through the peak);
+the sphere is fitted to those points with a robust loss, and the search narrows around the
+fitted outline. A chrome sphere's rim reflects what lies beside it, so parts of its outline
+are faint; the robust fit and the strength threshold leave those out.
+
+Detection: OpenCV's Hough transform proposes circles; each is refined as above and scored
+by the share of its outline that has an edge (``edge_support``) and by how well a smooth
+diffuse model (second-order spherical harmonics of the normal, which holds any Lambertian
+sphere to a few percent) explains its pixels: a diffuse sphere fits closely, a mirror
+sphere does not and has a highlight many times brighter than its median.
+"""
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+from scipy import ndimage
+
+from relight.colour import srgb_decode, srgb_encode
+from relight.probe_geometry import (Camera, ProbeError, Sphere, fit_sphere, outline_circle,
+                                    outline_polygon, sphere_from_circle, sphere_pixels)
+
+EDGE_SIGMA_PX = 0.7
+EDGE_ANGLES = 360
+EDGE_MIN_FRACTION = 0.3        # an edge weaker than 30% of the median edge strength is dropped
+REJECT_ROUNDS = 3               # outline fit: drop points beyond REJECT_SIGMAS robust sigmas
+REJECT_SIGMAS = 1.5
+REJECT_MIN_PX = 0.75
+EDGE_INLIER_PX = 1.5           # edge points this close to the fitted outline support it
+MIN_EDGE_SUPPORT = 0.45        # share of the outline with an edge needed to call it a sphere
+MIN_RADIUS_FRACTION = 0.02     # detection radii, as fractions of the image's shorter side
+MAX_RADIUS_FRACTION = 0.45
+MAX_CANDIDATES = 30
+CHROME_MIN_CONTRAST = 4.0      # chrome: brightest / median sphere pixel at least this
+CHROME_MIN_RESIDUAL = 0.45     # chrome: the smooth diffuse model misses by at least 45% rms
+DIFFUSE_MAX_RESIDUAL = 0.35    # diffuse: the smooth model fits within 35% rms (a hard
+                               # terminator under one small light is what it misses)
+
+
+def load_image(path: str, linear: bool = False) -> tuple[np.ndarray, float | None, str]:
+    """Read an image as linear RGB ``(H, W, 3)`` float64.
+
+    8- and 16-bit PNG/JPEG/TIFF are sRGB-decoded unless ``linear`` (16-bit files from
+    measurement datasets usually are linear); EXR is linear. Returns ``(image,
+    clip_level, how)``: ``clip_level`` is 1.0 for integer files (the value at which the
+    sensor or the file clips) and None for EXR.
+    """
+    if not os.path.exists(path):
+        raise ProbeError(f"image not found: {path}")
+    if path.lower().endswith(".exr"):
+        from relight.render import read_exr
+        return np.asarray(read_exr(path), np.float64), None, "linear (EXR)"
+    from relight.render import load_image as read_any   # every PNG mode and depth, JPEG
+    pixels, _, note = read_any(path)
+    bits = 16 if note.startswith("16-bit") else 8
+    rgb = pixels.astype(np.float64)
+    if linear:
+        return rgb, 1.0, f"linear {bits}-bit"
+    return srgb_decode(rgb), 1.0, f"sRGB {bits}-bit (decoded to linear)"
+
+
+def load_mask(path: str) -> np.ndarray:
+    """A mask image: True where the pixel is brighter than half of full scale."""
+    image, _, _ = load_image(path, linear=True)
+    return image.mean(-1) > 0.5
+
+
+def _encoded(image: np.ndarray) -> np.ndarray:
+    """sRGB-encoded, clipped ``(H, W, 3)``: edges weigh alike in dark and bright parts."""
+    return srgb_encode(np.clip(np.asarray(image, np.float64)[..., :3], 0.0, 1.0))
+
+
+def _edge_image(image: np.ndarray) -> np.ndarray:
+    """The image in which outlines are located: linear (a blur moves no edge there, while
+    the sRGB curve would push each edge toward its dark side), exposed by
+    :func:`_exposure`, clipped, smoothed."""
+    lin = np.asarray(image, np.float64)[..., :3]
+    lin = np.clip(lin * _exposure(lin), 0.0, 1.0)
+    return ndimage.gaussian_filter(lin, (EDGE_SIGMA_PX, EDGE_SIGMA_PX, 0))
+
+
+def _exposure(image: np.ndarray) -> float:
+    """Scale putting the 99th percentile of luminance at 0.5, so that a dark photo's
+    outlines count as much as a bright one's and a clipped highlight's flare less."""
+    return 0.5 / max(float(np.percentile(np.asarray(image)[..., :3].mean(-1), 99.0)), 1e-6)
+
+
+def _polar_outline(camera: Camera, sphere: Sphere, angles: np.ndarray):
+    """Centre (x, y) of the outline's best circle and the outline's radius along each angle."""
+    cx, cy, _ = outline_circle(camera, sphere)
+    x, y = outline_polygon(camera, sphere, 720)
+    theta = np.arctan2(y - cy, x - cx)
+    rad = np.hypot(x - cx, y - cy)
+    order = np.argsort(theta)
+    theta, rad = theta[order], rad[order]
+    theta = np.concatenate([theta - 2 * np.pi, theta, theta + 2 * np.pi])
+    rad = np.concatenate([rad, rad, rad])
+    return cx, cy, np.interp(angles, theta, rad)
+
+
+def edge_points(smoothed: np.ndarray, camera: Camera, guess: Sphere, band_px: float,
+                angles: int = EDGE_ANGLES) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Sub-pixel outline points (x, y) and their edge strengths along ``angles`` radial
+    lines within ``band_px`` of the guessed outline (``smoothed``: the linear RGB image,
+    clipped and smoothed by :data:`EDGE_SIGMA_PX`)."""
+    theta = np.linspace(-np.pi, np.pi, angles, endpoint=False)
+    cx, cy, r_theta = _polar_outline(camera, guess, theta)
+    step = 0.25
+    offsets = np.arange(-band_px, band_px + step / 2, step)
+    s = r_theta[:, None] + offsets[None, :]
+    xs = cx + s * np.cos(theta)[:, None]
+    ys = cy + s * np.sin(theta)[:, None]
+    h, w = smoothed.shape[:2]
+    inside = (xs > 1) & (xs < w - 1) & (ys > 1) & (ys < h - 1)
+    coords = [ys.ravel() - 0.5, xs.ravel() - 0.5]
+    samples = np.stack([ndimage.map_coordinates(smoothed[..., c], coords, order=1, mode="nearest")
+                        .reshape(xs.shape) for c in range(smoothed.shape[2])], -1)
+    grad = np.linalg.norm(np.gradient(samples, step, axis=1), axis=-1)
+    grad[~inside] = 0.0
+    # prefer edges near the guess: a sphere's own texture or reflections lie inside it
+    idx = np.argmax(grad * np.exp(-0.5 * (offsets / (0.5 * band_px)) ** 2)[None, :], axis=1)
+    rows = np.arange(angles)
+    ok = (idx > 0) & (idx < len(offsets) - 1) & inside[rows, idx]
+    g0 = grad[rows, np.clip(idx - 1, 0, None)]
+    g1 = grad[rows, idx]
+    g2 = grad[rows, np.clip(idx + 1, None, len(offsets) - 1)]
+    denom = g0 - 2 * g1 + g2
+    frac = np.where(np.abs(denom) > 1e-12, 0.5 * (g0 - g2) / np.where(denom == 0, 1, denom), 0.0)
+    frac = np.clip(frac, -0.5, 0.5)
+    radius = s[rows, idx] + frac * step
+    strength = g1
+    if ok.any():
+        ok &= strength >= EDGE_MIN_FRACTION * np.median(strength[ok])
+    x = cx + radius * np.cos(theta)
+    y = cy + radius * np.sin(theta)
+    return x[ok], y[ok], strength[ok]
+
+
+def refine_sphere(image: np.ndarray, camera: Camera, guess: Sphere, smoothed: np.ndarray | None = None,
+                  first_band_px: float | None = None) -> tuple[Sphere, float]:
+    """Fit the sphere to the image's edges near ``guess``; returns ``(sphere,
+    edge_support)``, ``edge_support`` being the share of radial lines whose edge lies within
+    :data:`EDGE_INLIER_PX` of the final outline."""
+    if smoothed is None:
+        smoothed = _edge_image(image)
+    r = outline_circle(camera, guess)[2]
+    sphere = guess
+    support = 0.0
+    for band in (first_band_px or max(3.0, 0.15 * r), 3.0, 2.0):
+        x, y, _ = edge_points(smoothed, camera, sphere, band)
+        if x.size < 0.2 * EDGE_ANGLES:
+            raise ProbeError("too little of the sphere's outline is visible as an edge")
+        sphere = fit_sphere(camera, x, y)
+        for _ in range(REJECT_ROUNDS):
+            dist = _outline_distance(camera, sphere, x, y)
+            mad = 1.4826 * np.median(np.abs(dist - np.median(dist)))
+            keep = np.abs(dist) <= max(REJECT_MIN_PX, REJECT_SIGMAS * mad)
+            if keep.sum() < 0.2 * EDGE_ANGLES or keep.all():
+                break
+            x, y = x[keep], y[keep]
+            sphere = fit_sphere(camera, x, y)
+        support = _edge_support(camera, sphere, *edge_points(smoothed, camera, sphere, band)[:2])
+    return sphere, support
+
+
+def _outline_distance(camera: Camera, sphere: Sphere, x, y) -> np.ndarray:
+    """Signed radial distance (pixels, + outside) of points from the sphere's outline."""
+    cx, cy, _ = outline_circle(camera, sphere)
+    _, _, r_theta = _polar_outline(camera, sphere, np.arctan2(y - cy, x - cx))
+    return np.hypot(x - cx, y - cy) - r_theta
+
+
+def _edge_support(camera: Camera, sphere: Sphere, x, y) -> float:
+    return float((np.abs(_outline_distance(camera, sphere, x, y)) <= EDGE_INLIER_PX).sum() / EDGE_ANGLES)
+
+
+def sphere_features(image: np.ndarray, camera: Camera, sphere: Sphere) -> dict:
+    """Figures telling a chrome from a diffuse sphere: ``contrast`` (99.9th percentile over
+    median luminance of the sphere's pixels) and ``residual`` (rms misfit of a second-order
+    spherical-harmonic shading model, over the mean luminance)."""
+    (x0, y0, x1, y1), usable, s = sphere_pixels(camera, sphere, rim_exclude_px=1.5)
+    usable &= s["cos_view"] >= 0.45
+    if usable.sum() < 30:
+        return {"contrast": 0.0, "residual": 1.0, "mean": 0.0}
+    lum = np.asarray(image, np.float64)[y0:y1, x0:x1, :3].mean(-1)[usable]
+    n = s["normal"][usable]
+    x, y, z = n[:, 0], n[:, 1], n[:, 2]
+    design = np.stack([np.ones_like(x), x, y, z, x * y, x * z, y * z, x * x - y * y, 3 * z * z - 1], 1)
+    coef, *_ = np.linalg.lstsq(design, lum, rcond=None)
+    mean = float(lum.mean())
+    resid = float(np.sqrt(np.mean((lum - design @ coef) ** 2)) / max(mean, 1e-9))
+    contrast = float(np.percentile(lum, 99.9) / max(np.median(lum), 1e-6))
+    return {"contrast": contrast, "residual": resid, "mean": mean}
+
+
+def hough_circles(image: np.ndarray) -> list[tuple[float, float, float]]:
+    """Circle candidates ``(cx, cy, r)`` in pixels (pixel-centre convention): OpenCV's
+    gradient-orientation Hough transform first (few, well-shaped circles), then the
+    classic one (more, looser), near-duplicates merged, at most :data:`MAX_CANDIDATES`."""
+    import cv2
+    img = np.asarray(image, np.float64)[..., :3]
+    gray = np.round(_encoded(img * _exposure(img)) @ np.array([0.299, 0.587, 0.114]) * 255).astype(np.uint8)
+    h, w = gray.shape
+    short = min(h, w)
+    rmin, rmax = max(6, int(MIN_RADIUS_FRACTION * short)), int(MAX_RADIUS_FRACTION * short)
+    found = []
+    alt = cv2.HoughCircles(cv2.GaussianBlur(gray, (0, 0), 1.5), cv2.HOUGH_GRADIENT_ALT, dp=1.5,
+                           minDist=rmin, param1=100, param2=0.7, minRadius=rmin, maxRadius=rmax)
+    classic = cv2.HoughCircles(cv2.GaussianBlur(gray, (0, 0), 2.5), cv2.HOUGH_GRADIENT, dp=1,
+                               minDist=rmin, param1=50, param2=20, minRadius=rmin, maxRadius=rmax)
+    for circles in (alt, classic):
+        if circles is None:
+            continue
+        for x, y, r in circles[0]:
+            # OpenCV's pixel (i, j) has its centre at (i, j); ours at (i + 0.5, j + 0.5)
+            c = (float(x) + 0.5, float(y) + 0.5, float(r))
+            if not any(math.hypot(c[0] - f[0], c[1] - f[1]) < 0.15 * f[2] and abs(c[2] - f[2]) < 0.15 * f[2]
+                       for f in found):
+                found.append(c)
+    return found[:MAX_CANDIDATES]
+
+
+def find_spheres(image: np.ndarray, camera: Camera) -> list[dict]:
+    """Refined sphere candidates with their features: ``sphere``, ``edge_support``,
+    ``contrast``, ``residual``, ``chrome`` and ``diffuse`` (bool), best supported first.
+    Of candidates of similar radius within half a radius of each other the best supported stays; so does
+    no circle lying inside a better supported one (a highlight or a reflection)."""
+    smoothed = _edge_image(image)
+    out: list[dict] = []
+    refined: list[tuple] = []
+    for cx, cy, r in hough_circles(image):
+        # Hough circles near one already refined to the same place add nothing
+        if any(math.hypot(cx - c[0], cy - c[1]) < 0.05 * r and abs(r - c[2]) < 0.05 * r for c in refined):
+            continue
+        refined.append((cx, cy, r))
+        try:
+            sphere, support = refine_sphere(image, camera, sphere_from_circle(camera, cx, cy, r), smoothed,
+                                            first_band_px=max(3.0, 0.12 * r))
+        except ProbeError:
+            continue
+        if support < MIN_EDGE_SUPPORT:
+            continue
+        circle = outline_circle(camera, sphere)
+        refined.append(circle)
+        same = [c for c in out if math.hypot(circle[0] - c["circle"][0], circle[1] - c["circle"][1])
+                < 0.5 * max(circle[2], c["circle"][2]) and 0.7 < circle[2] / c["circle"][2] < 1.4]
+        if any(c["edge_support"] >= support for c in same):
+            continue
+        out = [c for c in out if not any(c is d for d in same)]
+        f = sphere_features(image, camera, sphere)
+        out.append({"sphere": sphere, "circle": circle, "edge_support": support, **f,
+                    "chrome": f["contrast"] >= CHROME_MIN_CONTRAST and f["residual"] >= CHROME_MIN_RESIDUAL,
+                    "diffuse": f["residual"] <= DIFFUSE_MAX_RESIDUAL and f["mean"] > 0.005})
+    # a circle inside a better supported one is a highlight or a reflection on that sphere
+    out = [c for c in out if not any(
+        o is not c and math.hypot(c["circle"][0] - o["circle"][0], c["circle"][1] - o["circle"][1])
+        + c["circle"][2] < o["circle"][2] * 1.02 and o["edge_support"] >= c["edge_support"] for o in out)]
+    out.sort(key=lambda c: -c["edge_support"])
+    return out
+
+
+def pick_sphere(candidates: list[dict], kind: str, exclude: list[tuple] = ()) -> dict:
+    """The best candidate of ``kind`` ("chrome" or "diffuse") not overlapping ``exclude``
+    circles: the best edge support, nudged by the highlight's contrast and the radius
+    (chrome) or by a smooth shading and (less) the radius (diffuse)."""
+    pool = [c for c in candidates if c[kind] and not any(
+        math.hypot(c["circle"][0] - e[0], c["circle"][1] - e[1]) < c["circle"][2] + e[2] for e in exclude)]
+    if not pool:
+        seen = ", ".join(f"({c['circle'][0]:.0f}, {c['circle'][1]:.0f}, r {c['circle'][2]:.0f})"
+                         for c in candidates[:3]) or "none"
+        raise ProbeError(f"no {kind} sphere found (circles seen: {seen}); give --{kind}-circle or --{kind}-mask")
+    if kind == "chrome":   # the clearest outline, a bright highlight, a large sphere (a
+        # chrome sphere's outline is often faint where it reflects what lies beside it)
+        return max(pool, key=lambda c: c["edge_support"] + 0.1 * min(math.log10(c["contrast"]), 3.0) / 3.0
+                   + 0.2 * math.log(max(c["circle"][2], 1.0) / 20.0))
+    # the clearest outline, the smoothest shading, and (slightly) the larger sphere
+    return max(pool, key=lambda c: c["edge_support"] - 0.5 * c["residual"]
+               + 0.05 * math.log(max(c["circle"][2], 1.0) / 20.0))

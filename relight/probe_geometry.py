@@ -1,0 +1,472 @@
+"""The sphere procedure for real cameras: a sphere's 3-D position from its outline, each
+pixel's own view ray reflected about the sphere's normal there, and the light's direction
+from the chrome sphere's highlight (plus colour and a shading direction from a diffuse one).
+
+Convention (``shared/conventions.md``, "Camera frame"): camera frame x to the image right,
+y to the image top, z toward the camera; pixel coordinates x right, y down, origin at the
+image's top-left corner, pixel centres at +0.5. The principal point is the image centre.
+Directions come back as ``to_light`` unit vectors in the camera frame (from the sphere
+toward the light), the light being taken as distant compared with the sphere's radius.
+
+Perspective (a focal length in pixels): the rays tangent to a sphere form a right circular
+cone around the direction of its centre, so its outline is a conic (an ellipse, longer
+along the line to the image centre, for a sphere off the optical axis). Fitting that cone
+to outline points gives the centre's direction ``a`` and angular radius ``alpha``; with the
+scale fixed by ``|C| = 1`` the sphere is ``C = a``, ``R = sin(alpha)``. Orthographic (no
+focal length): view rays are parallel to -z, the outline is a circle and ``R`` its radius
+in pixels.
+
+The mirror map (reflected direction per pixel) of a sphere is close to equal-area (exactly
+so for an orthographic view: ``d omega_l = 4 dA / r^2``), so the highlight's direction is
+the intensity-weighted mean of the reflected directions over its pixels, weighted also by
+each pixel's solid angle of reflected directions; the weights are intensities above the
+local background, which makes an anti-aliased or blurred edge count by its coverage and
+gives sub-pixel localisation, clipped or not.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import ndimage, optimize
+
+HIGHLIGHT_FRACTION = 0.5       # highlight candidates: pixels >= half the brightest sphere pixel
+TIE_FRACTION = 0.98            # candidates within 2% of the peak count as equally bright (clipping)
+MAX_LIGHT_SPREAD_DEG = 8.0     # a blob spreading wider (rms, reflected directions) is not a light alone
+CORE_RIM_PX = 3                # ... then only its brightest core grown by 3 px is measured
+RIM_EXCLUDE_PX = 1.0           # pixels within 1 px of the outline are mixed with the background
+MAX_RIM_ANGLE_DEG = 80.0       # normals more than 80 deg from the view ray are too foreshortened
+LIT_FRACTION = (0.25, 0.95)    # diffuse pixels used for the shading fit, as fractions of the peak
+DIFFUSE_RIM_FRACTION = 0.9     # diffuse fit: normals within 0.9 of the radius (as relight.probes)
+ORTHO_DEPTH = 1.0e4            # z of an orthographic sphere's centre (any value works)
+OUTLINE_LOSS_SCALE_PX = 0.5    # robust outline fit: residuals beyond ~0.5 px count less
+
+
+class ProbeError(ValueError):
+    """A probe image, circle or mask cannot be used (one-line reason)."""
+
+
+@dataclass(frozen=True)
+class Camera:
+    """Pinhole camera (``focal_px``) or orthographic camera (``focal_px=None``) of an
+    image ``width`` x ``height`` pixels with the principal point at the image centre."""
+    width: int
+    height: int
+    focal_px: float | None = None
+
+    def __post_init__(self):
+        if int(self.width) < 1 or int(self.height) < 1:
+            raise ProbeError(f"image size must be positive, got {self.width} x {self.height}")
+        if self.focal_px is not None and not (math.isfinite(self.focal_px) and self.focal_px > 0):
+            raise ProbeError(f"focal length must be a positive number of pixels, got {self.focal_px}")
+
+    @classmethod
+    def from_fov(cls, width: int, height: int, fov_deg: float) -> "Camera":
+        """Pinhole camera whose horizontal field of view (across the width) is ``fov_deg``
+        in (0, 180) degrees, as Mitsuba's ``fov_axis="x"``."""
+        if not (math.isfinite(fov_deg) and 0.0 < fov_deg < 180.0):
+            raise ProbeError(f"field of view must be in (0, 180) degrees, got {fov_deg}")
+        return cls(int(width), int(height), 0.5 * width / math.tan(math.radians(fov_deg) / 2.0))
+
+    @property
+    def perspective(self) -> bool:
+        return self.focal_px is not None
+
+    def rays(self, x, y) -> tuple[np.ndarray, np.ndarray]:
+        """Ray origins and unit directions ``(..., 3)`` (camera frame, from the camera into
+        the scene) through pixel coordinates ``x``, ``y`` (x right, y down, pixels)."""
+        px = np.asarray(x, np.float64) - self.width / 2.0
+        py = -(np.asarray(y, np.float64) - self.height / 2.0)
+        if self.perspective:
+            d = np.stack([px, py, np.full_like(px, -self.focal_px)], -1)
+            return np.zeros_like(d), d / np.linalg.norm(d, axis=-1, keepdims=True)
+        d = np.zeros(px.shape + (3,))
+        d[..., 2] = -1.0
+        return np.stack([px, py, np.zeros_like(px)], -1), d
+
+    def project(self, points) -> np.ndarray:
+        """Pixel coordinates ``(..., 2)`` (x, y) of camera-frame points ``(..., 3)``."""
+        p = np.asarray(points, np.float64)
+        if self.perspective:
+            x = self.width / 2.0 + self.focal_px * p[..., 0] / -p[..., 2]
+            y = self.height / 2.0 - self.focal_px * p[..., 1] / -p[..., 2]
+        else:
+            x, y = self.width / 2.0 + p[..., 0], self.height / 2.0 - p[..., 1]
+        return np.stack([x, y], -1)
+
+    def pixel_scale(self, direction) -> float:
+        """Pixels per radian of ray angle near ``direction`` (perspective), or 1."""
+        if not self.perspective:
+            return 1.0
+        cos_t = abs(float(np.asarray(direction)[2]))
+        return self.focal_px / max(cos_t, 1e-6)
+
+
+@dataclass(frozen=True)
+class Sphere:
+    """A sphere in the camera frame: centre ``(3,)`` and radius. Perspective spheres are
+    scaled to ``|centre| = 1``; orthographic ones are in pixels (``centre[2]`` arbitrary)."""
+    centre: tuple[float, float, float]
+    radius: float
+    outline_rms_px: float = 0.0
+    outline_points: int = 0
+
+    @property
+    def c(self) -> np.ndarray:
+        return np.asarray(self.centre, np.float64)
+
+
+def sphere_from_cone(axis, alpha_rad: float, **kw) -> Sphere:
+    """The unit-distance sphere whose tangent cone has ``axis`` and half-angle ``alpha``."""
+    a = np.asarray(axis, np.float64)
+    a = a / np.linalg.norm(a)
+    return Sphere(tuple(a.tolist()), float(math.sin(alpha_rad)), **kw)
+
+
+def sphere_from_circle(camera: Camera, cx: float, cy: float, r: float) -> Sphere:
+    """The sphere whose outline is best approximated by the image circle ``(cx, cy, r)``
+    (pixels): the circle itself (orthographic) or the cone fitted to 64 of its points."""
+    if not all(math.isfinite(v) for v in (cx, cy, r)) or r < 2:
+        raise ProbeError(f"circle must be finite with a radius of at least 2 px, got {(cx, cy, r)}")
+    t = np.linspace(0, 2 * np.pi, 64, endpoint=False)
+    return fit_sphere(camera, cx + r * np.cos(t), cy + r * np.sin(t), robust=False)
+
+
+def fit_sphere(camera: Camera, x, y, robust: bool = True) -> Sphere:
+    """Sphere from outline points ``x``, ``y`` (pixels): a circle (orthographic) or a
+    tangent cone (perspective), algebraic first, then geometric least squares with a
+    robust loss (``robust``) so that a stand, an occluder or a faint edge counts less."""
+    x, y = np.asarray(x, np.float64).ravel(), np.asarray(y, np.float64).ravel()
+    if x.size < 8:
+        raise ProbeError(f"too few outline points to fit a sphere ({x.size})")
+    loss = dict(loss="soft_l1", f_scale=OUTLINE_LOSS_SCALE_PX) if robust else {}
+    if not camera.perspective:
+        a = np.stack([x, y, np.ones_like(x)], 1)
+        (c0, c1, c2), *_ = np.linalg.lstsq(a, x * x + y * y, rcond=None)
+        p0 = np.array([c0 / 2, c1 / 2, math.sqrt(max(c2 + c0 * c0 / 4 + c1 * c1 / 4, 1e-9))])
+        res = optimize.least_squares(lambda p: np.hypot(x - p[0], y - p[1]) - p[2], p0, **loss)
+        cx, cy, r = res.x
+        resid = res.fun
+        sphere_c = (cx - camera.width / 2.0, -(cy - camera.height / 2.0), -ORTHO_DEPTH)
+        if not (np.isfinite(res.x).all() and r > 1):
+            raise ProbeError("could not fit a circle to the sphere outline")
+        rms = float(np.sqrt(np.mean(np.minimum(resid, 3.0) ** 2)))
+        return Sphere(tuple(float(v) for v in sphere_c), float(r), rms, int(x.size))
+    _, d = camera.rays(x, y)
+    ap, *_ = np.linalg.lstsq(d, np.ones(len(d)), rcond=None)      # d . (a / cos alpha) = 1
+    norm = np.linalg.norm(ap)
+    if not np.isfinite(norm) or norm <= 1.0:
+        raise ProbeError("could not fit a sphere to the outline (points not on a cone)")
+    a0 = ap / norm
+    e1 = np.cross(a0, [0.0, 1.0, 0.0] if abs(a0[1]) < 0.9 else [1.0, 0.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(a0, e1)
+    scale = camera.pixel_scale(a0)
+
+    def axis(p):
+        v = a0 + p[0] * e1 + p[1] * e2
+        return v / np.linalg.norm(v)
+
+    def residual(p):
+        return (np.arccos(np.clip(d @ axis(p), -1, 1)) - p[2]) * scale
+
+    res = optimize.least_squares(residual, [0.0, 0.0, math.acos(1.0 / norm)], **loss)
+    if not np.isfinite(res.x).all() or not 0 < res.x[2] < math.pi / 2:
+        raise ProbeError("could not fit a sphere to the outline")
+    rms = float(np.sqrt(np.mean(np.minimum(res.fun, 3.0) ** 2)))
+    return sphere_from_cone(axis(res.x), float(res.x[2]), outline_rms_px=rms, outline_points=int(x.size))
+
+
+def mask_outline_points(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sub-pixel outline points of a boolean mask: the midpoints between each inside pixel
+    and its outside 4-neighbour (unbiased, unlike the inside boundary pixels); edges along
+    the image border (a cut, not the outline) are left out."""
+    m = np.asarray(mask, bool)
+    xs, ys = [], []
+    for axis in (0, 1):
+        a, b = (m[:-1], m[1:]) if axis == 0 else (m[:, :-1], m[:, 1:])
+        rows, cols = np.nonzero(a != b)
+        if axis == 0:
+            xs.append(cols + 0.5), ys.append(rows + 1.0)
+        else:
+            xs.append(cols + 1.0), ys.append(rows + 0.5)
+    return np.concatenate(xs), np.concatenate(ys)
+
+
+def sphere_from_mask(camera: Camera, mask: np.ndarray) -> Sphere:
+    """Sphere fitted to the outline of a boolean mask ``(H, W)`` of the camera's size."""
+    m = np.asarray(mask, bool)
+    if m.shape != (camera.height, camera.width):
+        raise ProbeError(f"mask is {m.shape[1]} x {m.shape[0]} pixels but the image is "
+                         f"{camera.width} x {camera.height}")
+    if m.sum() < 20:
+        raise ProbeError("the sphere mask is empty (fewer than 20 white pixels)")
+    return fit_sphere(camera, *mask_outline_points(m))
+
+
+def outline_circle(camera: Camera, sphere: Sphere) -> tuple[float, float, float]:
+    """``(cx, cy, r)`` in pixels: the circle closest to the sphere's image outline."""
+    x, y = outline_polygon(camera, sphere, 128)
+    a = np.stack([x, y, np.ones_like(x)], 1)
+    (c0, c1, c2), *_ = np.linalg.lstsq(a, x * x + y * y, rcond=None)
+    return float(c0 / 2), float(c1 / 2), float(math.sqrt(c2 + c0 * c0 / 4 + c1 * c1 / 4))
+
+
+def outline_polygon(camera: Camera, sphere: Sphere, n: int = 128) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` points (x, y) of the sphere's image outline (the projected tangent cone)."""
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    c = sphere.c
+    if not camera.perspective:
+        p = camera.project(c + sphere.radius * np.stack([np.cos(t), np.sin(t), 0 * t], -1))
+        return p[:, 0], p[:, 1]
+    a = c / np.linalg.norm(c)
+    e1 = np.cross(a, [0.0, 1.0, 0.0] if abs(a[1]) < 0.9 else [1.0, 0.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(a, e1)
+    alpha = math.asin(min(sphere.radius / np.linalg.norm(c), 1.0))
+    d = math.cos(alpha) * a + math.sin(alpha) * (np.cos(t)[:, None] * e1 + np.sin(t)[:, None] * e2)
+    p = camera.project(d)
+    return p[:, 0], p[:, 1]
+
+
+def bounding_box(camera: Camera, sphere: Sphere, margin: int = 2) -> tuple[int, int, int, int]:
+    """``(x0, y0, x1, y1)`` pixel index bounds (end exclusive) of the sphere, clipped to the image."""
+    x, y = outline_polygon(camera, sphere, 64)
+    x0 = max(int(math.floor(x.min())) - margin, 0)
+    y0 = max(int(math.floor(y.min())) - margin, 0)
+    x1 = min(int(math.ceil(x.max())) + margin, camera.width)
+    y1 = min(int(math.ceil(y.max())) + margin, camera.height)
+    if x1 <= x0 or y1 <= y0:
+        raise ProbeError("the sphere lies outside the image")
+    return x0, y0, x1, y1
+
+
+def surface(camera: Camera, sphere: Sphere, x, y) -> dict:
+    """Where each pixel's ray meets the sphere: ``hit`` (bool), ``normal`` and reflected
+    direction ``reflect`` (unit, camera frame), ``cos_view`` (normal . direction to the
+    camera) and ``point`` (camera frame), all of shape ``x.shape (+ (3,))``."""
+    o, d = camera.rays(x, y)
+    oc = sphere.c - o
+    b = np.sum(d * oc, -1)
+    disc = b * b - (np.sum(oc * oc, -1) - sphere.radius ** 2)
+    hit = disc >= 0
+    t = b - np.sqrt(np.maximum(disc, 0.0))
+    p = o + t[..., None] * d
+    n = (p - sphere.c) / sphere.radius
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    dn = np.sum(d * n, -1)
+    refl = d - 2.0 * dn[..., None] * n
+    return {"hit": hit, "normal": n, "reflect": refl, "cos_view": -dn, "point": p}
+
+
+def reflected_direction(camera: Camera, sphere: Sphere, x: float, y: float) -> np.ndarray:
+    """The mirror-reflected view ray at pixel ``(x, y)`` on the sphere (unit, camera frame)."""
+    s = surface(camera, sphere, np.array([x]), np.array([y]))
+    if not s["hit"][0]:
+        raise ProbeError(f"pixel ({x:.1f}, {y:.1f}) is not on the sphere")
+    return s["reflect"][0]
+
+
+def predict_highlight(camera: Camera, sphere: Sphere, to_light) -> tuple[np.ndarray, np.ndarray]:
+    """Closed-form check: pixel ``(x, y)`` and surface point of a distant light's mirror
+    highlight. The normal there bisects the direction to the camera and ``to_light``:
+    ``n = (v + l) / |v + l|`` with ``P = C + R n`` and ``v = (o - P) / |o - P|``;
+    iterated to a fixed point (converges at the rate ``R / |C|``)."""
+    l = np.asarray(to_light, np.float64)
+    l = l / np.linalg.norm(l)
+    c = sphere.c
+    p = c.copy()
+    for _ in range(60):
+        v = -p / np.linalg.norm(p) if camera.perspective else np.array([0.0, 0.0, 1.0])
+        n = (v + l) / np.linalg.norm(v + l)
+        p_new = c + sphere.radius * n
+        if np.linalg.norm(p_new - p) < 1e-13 * max(1.0, sphere.radius):
+            p = p_new
+            break
+        p = p_new
+    return camera.project(p), p
+
+
+@dataclass
+class Highlight:
+    """The chrome sphere's highlight: direction toward the light and how it was found."""
+    to_light: np.ndarray                    # unit, camera frame
+    pixel: tuple[float, float]              # intensity-weighted centroid (x, y), pixels
+    quality: dict = field(default_factory=dict)
+
+
+def _luminance(image: np.ndarray) -> np.ndarray:
+    img = np.asarray(image, np.float64)
+    return img if img.ndim == 2 else img[..., :3] @ np.array([0.2126, 0.7152, 0.0722])
+
+
+def sphere_pixels(camera: Camera, sphere: Sphere, mask: np.ndarray | None = None,
+                  rim_exclude_px: float = RIM_EXCLUDE_PX):
+    """Pixels of the sphere's interior usable for measurement, in its bounding box:
+    returns ``(box, usable (h, w) bool, surface dict over the box)``."""
+    x0, y0, x1, y1 = box = bounding_box(camera, sphere)
+    ys, xs = np.mgrid[y0:y1, x0:x1] + 0.5
+    s = surface(camera, sphere, xs, ys)
+    # shrink by rim_exclude_px: every pixel whose neighbourhood leaves the sphere is out
+    shrunk = s["hit"].copy()
+    for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1), (0.7, 0.7), (-0.7, 0.7), (0.7, -0.7), (-0.7, -0.7)):
+        shrunk &= surface(camera, sphere, xs + dx * rim_exclude_px, ys + dy * rim_exclude_px)["hit"]
+    usable = shrunk & (s["cos_view"] >= math.cos(math.radians(MAX_RIM_ANGLE_DEG)))
+    if mask is not None:
+        usable &= np.asarray(mask, bool)[y0:y1, x0:x1]
+    return box, usable, s
+
+
+def _solid_angle_weights(camera: Camera, sphere: Sphere, xs, ys) -> np.ndarray:
+    """Solid angle of reflected directions per pixel, ``|dl/dx x dl/dy|`` by central
+    differences (half a pixel each way); where a neighbour misses the sphere, the median."""
+    h = 0.5
+    lx1 = surface(camera, sphere, xs + h, ys)
+    lx0 = surface(camera, sphere, xs - h, ys)
+    ly1 = surface(camera, sphere, xs, ys + h)
+    ly0 = surface(camera, sphere, xs, ys - h)
+    ok = lx1["hit"] & lx0["hit"] & ly1["hit"] & ly0["hit"]
+    j = np.linalg.norm(np.cross(lx1["reflect"] - lx0["reflect"], ly1["reflect"] - ly0["reflect"]), axis=-1)
+    if ok.any():
+        j = np.where(ok, j, np.median(j[ok]))
+    else:
+        j = np.ones_like(j)
+    return j
+
+
+def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np.ndarray | None = None,
+                     clip_level: float | None = None) -> Highlight:
+    """Direction toward the light from a chrome (mirror) sphere's highlight.
+
+    The light's core is the largest connected set of pixels within :data:`TIE_FRACTION`
+    of the brightest usable pixel (the peak pixel itself when nothing clips) spanning at
+    most :data:`MAX_LIGHT_SPREAD_DEG` of reflected directions: the brighter a source, the
+    wider its clipped blob, while a hot pixel or a firefly stays tiny and a window or a lit
+    wall spreads wider. The highlight is the connected region around that core of pixels
+    at least :data:`HIGHLIGHT_FRACTION` of the peak (only the core grown by
+    :data:`CORE_RIM_PX` when that region spreads wider, i.e. the light touches bright
+    surroundings), grown by two pixels; it gives the intensity-above-background and
+    solid-angle weighted mean of the reflected view rays.
+
+    Args:
+        image: linear RGB ``(H, W, 3)`` or luminance ``(H, W)``.
+        clip_level: the value at which the sensor clips (1 for PNG/JPEG), if any; only
+            used to report ``clipped`` in the quality figures.
+    """
+    lum = _luminance(image)
+    (x0, y0, x1, y1), usable, s = sphere_pixels(camera, sphere, mask)
+    if usable.sum() < 5:
+        raise ProbeError("the chrome sphere is too small or hidden (fewer than 5 usable pixels)")
+    crop = lum[y0:y1, x0:x1]
+    values = crop[usable]
+    peak = float(values.max())
+    floor = float(np.median(values))
+    if not peak > 0 or peak <= 1.5 * floor + 1e-6:
+        raise ProbeError("no highlight on the chrome sphere (it is black or evenly lit)")
+    labels, count = ndimage.label(usable & (crop >= HIGHLIGHT_FRACTION * peak), np.ones((3, 3)))
+    refl = s["reflect"]
+    # the brightest cores (clipped blobs, or the peak pixel of an unclipped image)
+    cores, n_cores = ndimage.label(usable & (crop >= TIE_FRACTION * peak), np.ones((3, 3)))
+    core_index = np.arange(1, n_cores + 1)
+    core_sizes = np.asarray(ndimage.sum(np.ones_like(crop), cores, core_index))
+    core_spreads = np.array([_spread_deg(refl[cores == k]) for k in core_index])
+    pool = core_spreads <= MAX_LIGHT_SPREAD_DEG
+    pool = pool if pool.any() else np.ones_like(pool)
+    best_core = cores == int(core_index[pool][np.argmax(core_sizes[pool])])
+    best = int(np.max(labels[best_core]))
+    region = labels == best
+    square = np.ones((3, 3))
+    if _spread_deg(refl[region]) > MAX_LIGHT_SPREAD_DEG:
+        # a light merged with broad bright surroundings: measure its core and rim only,
+        # above the level of the surroundings just outside that rim
+        grown = ndimage.binary_dilation(best_core, square, iterations=CORE_RIM_PX) & usable
+        ring = ndimage.binary_dilation(grown, square, iterations=2) & usable & ~grown
+        region &= grown
+        background = float(np.percentile(crop[ring], 90)) if ring.sum() >= 4 else floor
+    else:
+        grown = ndimage.binary_dilation(region, square, iterations=2) & usable
+        ring = ndimage.binary_dilation(grown, square, iterations=2) & usable & ~grown & (labels == 0)
+        background = float(np.median(crop[ring])) if ring.sum() >= 4 else floor
+    index = np.arange(1, count + 1)
+    energies = np.asarray(ndimage.sum(crop - HIGHLIGHT_FRACTION * peak, labels, index))
+    others = energies[index != best] / max(float(energies[index == best][0]), 1e-12)
+    weights = np.clip(crop - background, 0.0, None) * grown
+    ys, xs = np.nonzero(weights > 0)
+    w = weights[ys, xs] * _solid_angle_weights(camera, sphere, xs + x0 + 0.5, ys + y0 + 0.5)
+    total = refl[ys, xs] * w[:, None]
+    to_light = total.sum(0)
+    if not np.linalg.norm(to_light) > 0:
+        raise ProbeError("no highlight on the chrome sphere")
+    to_light /= np.linalg.norm(to_light)
+    px = float(np.average(xs + x0 + 0.5, weights=weights[ys, xs]))
+    py = float(np.average(ys + y0 + 0.5, weights=weights[ys, xs]))
+    cos_view = float(np.average(s["cos_view"][ys, xs], weights=w))
+    clipped = clip_level is not None and int((crop[region] >= 0.995 * clip_level).sum()) >= 2
+    spread_deg = _spread_deg(refl[region])
+    quality = {
+        "highlight_px": [px, py],
+        "highlight_pixels": int(region.sum()),
+        "highlight_spread_deg": spread_deg,
+        "peak": peak,
+        "background": background,
+        "clipped": bool(clipped),
+        "view_angle_deg": math.degrees(math.acos(min(max(cos_view, -1.0), 1.0))),
+        "ambiguity": float(min(others.max(), 1.0)) if others.size else 0.0,
+    }
+    quality["uncertainty_deg"] = _uncertainty_deg(camera, sphere, quality)
+    return Highlight(to_light, (px, py), quality)
+
+
+def _spread_deg(directions: np.ndarray) -> float:
+    """RMS angle (degrees, small-angle) of unit vectors ``(N, 3)`` about their mean."""
+    return float(math.degrees(math.sqrt(max(2.0 * (1.0 - np.linalg.norm(directions.mean(0))), 0.0))))
+
+
+def _uncertainty_deg(camera: Camera, sphere: Sphere, q: dict) -> float:
+    """Rough 1-sigma uncertainty of the direction (degrees): outline and highlight position
+    errors (pixels) turned into normal errors on a sphere of radius ``r_px``, doubled by the
+    reflection and stretched by foreshortening; plus a term for a broad highlight."""
+    r_px = sphere.radius * (camera.pixel_scale(sphere.c / np.linalg.norm(sphere.c)) / np.linalg.norm(sphere.c)
+                            if camera.perspective else 1.0)
+    outline_px = 0.05 + sphere.outline_rms_px / math.sqrt(max(sphere.outline_points, 1) / 8.0)
+    highlight_px = 0.1 + 0.1 * math.sqrt(q["highlight_pixels"])
+    cos_n = max(math.cos(math.radians(q["view_angle_deg"] / 2.0)), 0.1)
+    geometric = 2.0 * math.hypot(outline_px, highlight_px) / (r_px * cos_n)
+    return float(math.degrees(geometric) + 0.1 * q["highlight_spread_deg"] + 10.0 * q["ambiguity"] ** 4)
+
+
+def diffuse_light(image: np.ndarray, camera: Camera, sphere: Sphere,
+                  mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Light direction (unit, camera frame), colour (unit-norm linear RGB) and fit figures
+    from a diffuse sphere, with each pixel's perspective normal.
+
+    As :func:`relight.probes.diffuse_light`: Lambert shading plus a constant ambient term
+    fitted on pixels between :data:`LIT_FRACTION` of the peak; colour = their mean RGB.
+    """
+    img = np.asarray(image, np.float64)
+    if img.ndim != 3 or img.shape[2] < 3:
+        raise ProbeError(f"expected an (H, W, 3) image, got shape {img.shape}")
+    img = img[..., :3]
+    (x0, y0, x1, y1), usable, s = sphere_pixels(camera, sphere, mask, rim_exclude_px=1.5)
+    usable &= s["cos_view"] >= math.sqrt(1.0 - DIFFUSE_RIM_FRACTION ** 2)
+    crop = img[y0:y1, x0:x1]
+    lum = _luminance(crop)
+    if usable.sum() < 20:
+        raise ProbeError("the diffuse sphere is too small (fewer than 20 usable pixels)")
+    peak = float(np.percentile(lum[usable], 99.5))
+    if not peak > 1e-6:
+        raise ProbeError("the diffuse sphere is black")
+    lit = usable & (lum > LIT_FRACTION[0] * peak) & (lum < LIT_FRACTION[1] * peak)
+    if lit.sum() < 20:
+        raise ProbeError("too few lit pixels on the diffuse sphere")
+    design = np.concatenate([s["normal"][lit], np.ones((int(lit.sum()), 1))], axis=1)
+    solution, *_ = np.linalg.lstsq(design, lum[lit], rcond=None)
+    b = solution[:3]
+    rgb = crop[lit].mean(0)
+    if not np.linalg.norm(b) > 0 or not rgb.max() > 0 or (rgb < 0).any():
+        raise ProbeError("degenerate diffuse sphere shading")
+    resid = lum[lit] - design @ solution
+    info = {"lit_pixels": int(lit.sum()), "shading_rms": float(np.sqrt(np.mean(resid ** 2)) / peak),
+            "ambient": float(solution[3] / peak)}
+    return b / np.linalg.norm(b), rgb / np.linalg.norm(rgb), info

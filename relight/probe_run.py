@@ -1,0 +1,249 @@
+"""``relight probe`` as a library call: images in, one predictions entry (and a QA
+overlay) out. See :mod:`relight.probe_geometry` for the geometry and
+:mod:`relight.probe_detect` for finding the spheres."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from relight import probe_detect as detect
+from relight import probe_geometry as geom
+from relight.probe_geometry import Camera, ProbeError, Sphere
+
+
+@dataclass(frozen=True)
+class ProbeConfig:
+    """What ``relight probe`` was asked. Give ``fov_deg`` (horizontal, across the image
+    width) or ``focal_px`` for a perspective camera; neither means orthographic. Circles
+    are ``(cx, cy, r)`` in pixels (x right, y down, origin top-left, pixel centres at +0.5)."""
+    chrome: str | None = None
+    chrome_circle: tuple[float, float, float] | None = None
+    chrome_mask: str | None = None
+    diffuse: str | None = None
+    diffuse_circle: tuple[float, float, float] | None = None
+    diffuse_mask: str | None = None
+    fov_deg: float | None = None
+    focal_px: float | None = None
+    camera_tilt_deg: float | None = None
+    linear: bool = False
+    refine: bool = True
+
+    def __post_init__(self):
+        if not self.chrome and not self.diffuse:
+            raise ProbeError("give --chrome (direction) and/or --diffuse (colour)")
+        if self.fov_deg is not None and self.focal_px is not None:
+            raise ProbeError("give --fov or --focal-px, not both")
+        for kind in ("chrome", "diffuse"):
+            if getattr(self, f"{kind}_circle") is not None and getattr(self, f"{kind}_mask") is not None:
+                raise ProbeError(f"give --{kind}-circle or --{kind}-mask, not both")
+            if (getattr(self, f"{kind}_circle") is not None or getattr(self, f"{kind}_mask") is not None) \
+                    and not getattr(self, kind):
+                raise ProbeError(f"--{kind}-circle/--{kind}-mask need --{kind} IMG")
+
+    def camera(self, width: int, height: int) -> Camera:
+        if self.fov_deg is not None:
+            return Camera.from_fov(width, height, self.fov_deg)
+        return Camera(width, height, self.focal_px)
+
+
+@dataclass
+class ProbeResult:
+    """One probe measurement: the predictions entry and what the QA overlay draws."""
+    entry: dict
+    camera: Camera
+    chrome_image: np.ndarray | None = None
+    chrome_sphere: Sphere | None = None
+    highlight: geom.Highlight | None = None
+    diffuse_image: np.ndarray | None = None
+    diffuse_sphere: Sphere | None = None
+
+
+def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mask_path: str | None = None,
+                  refine: bool = True, exclude=()) -> tuple[Sphere, np.ndarray | None, str]:
+    """The ``kind`` sphere in ``image`` from a mask, a circle (refined on the image's
+    edges unless ``refine`` is off or the edges disagree), or automatic detection.
+    Returns ``(sphere, mask or None, how)``."""
+    if mask_path is not None:
+        mask = detect.load_mask(mask_path)
+        return geom.sphere_from_mask(camera, mask), mask, "mask"
+    if circle is not None:
+        guess = geom.sphere_from_circle(camera, *circle)
+        geom.bounding_box(camera, guess)
+        if not refine:
+            return guess, None, "circle"
+        try:
+            sphere, support = detect.refine_sphere(image, camera, guess)
+        except ProbeError:
+            return guess, None, "circle (edges too faint to refine)"
+        r0 = circle[2]
+        moved = math.dist(detect.outline_circle(camera, sphere), detect.outline_circle(camera, guess))
+        if support < detect.MIN_EDGE_SUPPORT or moved > 0.15 * r0:
+            return guess, None, "circle (edges disagree; not refined)"
+        return sphere, None, "circle refined on edges"
+    candidates = detect.find_spheres(image, camera)
+    found = detect.pick_sphere(candidates, kind, exclude)
+    return found["sphere"], None, "detected"
+
+
+def run_probe(cfg: ProbeConfig) -> ProbeResult:
+    """Run the sphere procedure; returns the predictions entry (without ``id``).
+
+    Direction: the chrome sphere's highlight (each pixel's own view ray reflected),
+    else the diffuse sphere's shading. Colour: the diffuse sphere's mean lit colour
+    (white when there is no diffuse sphere).
+    """
+    entry: dict = {}
+    result = ProbeResult(entry=entry, camera=None)
+    direction, rgb, methods = None, np.ones(3) / math.sqrt(3.0), []
+    chrome_circle = None
+    if cfg.chrome:
+        image, clip, how = detect.load_image(cfg.chrome, cfg.linear)
+        camera = cfg.camera(image.shape[1], image.shape[0])
+        sphere, mask, found = locate_sphere(image, camera, "chrome", cfg.chrome_circle, cfg.chrome_mask, cfg.refine)
+        if np.asarray(image).max() <= 0:
+            raise ProbeError(f"{cfg.chrome} is black")
+        hl = geom.locate_highlight(image, camera, sphere, mask, clip)
+        direction = hl.to_light
+        chrome_circle = detect.outline_circle(camera, sphere)
+        entry["chrome_circle"] = [round(v, 3) for v in chrome_circle]
+        entry["chrome_found_by"] = found
+        entry["chrome_centre_camera"] = [round(float(v), 6) for v in sphere.c / np.linalg.norm(sphere.c)]
+        entry["quality"] = {k: (round(v, 4) if isinstance(v, float) else v) for k, v in hl.quality.items()}
+        entry["quality"]["outline_rms_px"] = round(sphere.outline_rms_px, 4)
+        entry["quality_deg"] = round(hl.quality["uncertainty_deg"], 3)
+        entry["image_encoding"] = how
+        methods.append("chrome")
+        result.camera, result.chrome_image, result.chrome_sphere, result.highlight = camera, image, sphere, hl
+    if cfg.diffuse:
+        same = cfg.diffuse == cfg.chrome
+        image = result.chrome_image if same else detect.load_image(cfg.diffuse, cfg.linear)[0]
+        camera = cfg.camera(image.shape[1], image.shape[0])
+        exclude = [chrome_circle] if same and chrome_circle is not None else []
+        sphere, mask, found = locate_sphere(image, camera, "diffuse", cfg.diffuse_circle, cfg.diffuse_mask,
+                                            cfg.refine, exclude)
+        d_dir, rgb, info = geom.diffuse_light(image, camera, sphere, mask)
+        entry["diffuse_circle"] = [round(v, 3) for v in detect.outline_circle(camera, sphere)]
+        entry["diffuse_found_by"] = found
+        entry["diffuse_to_light_camera"] = [round(float(v), 6) for v in d_dir]
+        entry["diffuse_fit"] = {k: round(v, 4) if isinstance(v, float) else v for k, v in info.items()}
+        if direction is None:
+            direction = d_dir
+        methods.append("diffuse")
+        result.diffuse_image, result.diffuse_sphere = image, sphere
+        result.camera = result.camera or camera
+    entry["to_light_camera"] = [float(v) for v in direction]
+    entry["rgb"] = [float(v) for v in rgb]
+    entry["method"] = "+".join(methods)
+    entry["projection"] = ("orthographic" if not result.camera.perspective
+                           else f"perspective, focal {result.camera.focal_px:.2f} px")
+    from relight.probes import camera_to_pan_tilt
+    tilt = cfg.camera_tilt_deg if cfg.camera_tilt_deg is not None else 0.0
+    entry["pan_deg"], entry["tilt_deg"] = camera_to_pan_tilt(direction, tilt)
+    return result
+
+
+def _draw(canvas, camera: Camera, sphere: Sphere | None, highlight: geom.Highlight | None, colour,
+          scale: float, dx: float, dy: float, thick: int) -> None:
+    """Draw a sphere's outline and (chrome) its highlight, the normal there and the
+    reflected direction on ``canvas`` (BGR uint8), image point ``(x, y)`` going to
+    ``((x - dx) * scale, (y - dy) * scale)`` (both in the +0.5 pixel-centre convention)."""
+    import cv2
+    if sphere is None:
+        return
+
+    def pt(xy):   # OpenCV draws with integer pixel centres; shift=4 gives 1/16 px
+        a = np.asarray(xy, np.float64)
+        return np.round(np.stack([(a[..., 0] - dx) * scale - 0.5, (a[..., 1] - dy) * scale - 0.5], -1) * 16) \
+            .astype(np.int32)
+
+    def tup(xy):
+        return tuple(int(v) for v in pt(xy))
+
+    x, y = geom.outline_polygon(camera, sphere, 180)
+    cv2.polylines(canvas, [pt(np.stack([x, y], -1))], True, colour, thick, cv2.LINE_AA, shift=4)
+    if highlight is None:
+        return
+    s = geom.surface(camera, sphere, np.array([highlight.pixel[0]]), np.array([highlight.pixel[1]]))
+    if not s["hit"][0]:
+        return
+    p, n = s["point"][0], s["normal"][0]
+    r_px = detect.outline_circle(camera, sphere)[2]
+    hit_px = camera.project(p)
+    cv2.line(canvas, tup(camera.project(sphere.c)), tup(camera.project(p + n * sphere.radius * 0.5)),
+             (0, 160, 255), thick, cv2.LINE_AA, shift=4)
+    # the reflected direction, drawn as the image of a 3-D segment from the highlight
+    end = camera.project(p + highlight.to_light * sphere.radius * 1.5)
+    if np.linalg.norm(end - hit_px) < 0.2 * r_px:     # toward or away from the camera: lengthen
+        end = hit_px + (end - hit_px) * (0.2 * r_px / max(np.linalg.norm(end - hit_px), 1e-9))
+    cv2.arrowedLine(canvas, tup(hit_px), tup(end), (0, 0, 255), thick, cv2.LINE_AA, shift=4, tipLength=0.2)
+    c = tup(np.asarray(highlight.pixel))
+    arm = 6 * 16
+    cv2.line(canvas, (c[0] - arm, c[1]), (c[0] + arm, c[1]), (255, 0, 255), thick, cv2.LINE_AA, shift=4)
+    cv2.line(canvas, (c[0], c[1] - arm), (c[0], c[1] + arm), (255, 0, 255), thick, cv2.LINE_AA, shift=4)
+
+
+CHROME_BGR, DIFFUSE_BGR = (0, 255, 0), (255, 255, 0)
+
+
+def write_qa(path: str, result: ProbeResult, title: str = "") -> None:
+    """QA overlay PNG: the image with the outlines (green chrome, cyan diffuse), the
+    highlight (magenta cross), the normal there (orange, from the sphere's centre) and the
+    reflected direction toward the light (red arrow); on the right, each sphere enlarged
+    with the same marks; below, the numbers."""
+    import cv2
+    from relight.render import to_srgb8
+    cam = result.camera
+    image = result.chrome_image if result.chrome_image is not None else result.diffuse_image
+    # dark photographs are brightened for display (by up to 64x, as the caption says)
+    exposure = float(np.clip(detect._exposure(image), 1.0, 64.0))
+    h, w = image.shape[:2]
+    scale = min(1.0, 900.0 / max(h, w))
+    full = cv2.resize(to_srgb8(image, exposure)[..., ::-1], (max(1, round(w * scale)), max(1, round(h * scale))),
+                      interpolation=cv2.INTER_AREA).copy()
+    same = result.diffuse_image is result.chrome_image
+    _draw(full, cam, result.chrome_sphere, result.highlight, CHROME_BGR, scale, 0.0, 0.0, 1)
+    if same or result.chrome_image is None:
+        _draw(full, cam, result.diffuse_sphere, None, DIFFUSE_BGR, scale, 0.0, 0.0, 1)
+    tiles, zoom = [], 300
+    for sphere, img, hl, colour in ((result.chrome_sphere, result.chrome_image, result.highlight, CHROME_BGR),
+                                    (result.diffuse_sphere, result.diffuse_image, None, DIFFUSE_BGR)):
+        if sphere is None:
+            continue
+        cx, cy, r = detect.outline_circle(cam, sphere)
+        half = 1.25 * r
+        s = zoom / (2 * half)
+        x0, y0 = cx - half, cy - half
+        m = np.array([[s, 0, (0.5 - x0) * s - 0.5], [0, s, (0.5 - y0) * s - 0.5]])
+        tile = cv2.warpAffine(np.ascontiguousarray(to_srgb8(img, exposure)[..., ::-1]), m, (zoom, zoom), flags=cv2.INTER_LINEAR)
+        _draw(tile, cam, sphere, hl, colour, s, x0, y0, 2)
+        tiles.append(tile)
+    right = np.concatenate(tiles, 0)
+    height = max(full.shape[0], right.shape[0])
+    panel = np.zeros((height + 70, full.shape[1] + right.shape[1] + 4, 3), np.uint8)
+    panel[:full.shape[0], :full.shape[1]] = full
+    panel[:right.shape[0], full.shape[1] + 4:] = right
+    e = result.entry
+    d = e["to_light_camera"]
+    if exposure > 1.0:
+        title = f"{title}  (shown {exposure:.0f}x brighter)"
+    lines = [title, f"to_light_camera ({d[0]:+.3f}, {d[1]:+.3f}, {d[2]:+.3f})  pan {e['pan_deg']:.1f}  "
+             f"tilt {e['tilt_deg']:.1f}  [{e['method']}; {e['projection']}]"]
+    if "quality" in e:
+        q = e["quality"]
+        lines.append(f"uncertainty ~{e['quality_deg']:.2f} deg; highlight {q['highlight_pixels']} px"
+                     f"{' clipped' if q['clipped'] else ''}; view angle {q['view_angle_deg']:.0f} deg; "
+                     f"outline rms {q['outline_rms_px']:.2f} px; ambiguity {q['ambiguity']:.2f}")
+    for i, text in enumerate(t for t in lines if t):
+        cv2.putText(panel, text, (6, height + 18 + 20 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1,
+                    cv2.LINE_AA)
+    ok, buf = cv2.imencode(".png", panel)
+    if not ok:
+        raise ProbeError(f"cannot encode the QA overlay for {path}")
+    from relight.fileio import atomic_write
+
+    def writer(tmp):
+        with open(tmp, "wb") as f:
+            f.write(buf.tobytes())
+    atomic_write(path, writer)
