@@ -169,7 +169,9 @@ def rgb_to_cct_duv_near_locus(rgb) -> tuple[np.ndarray, np.ndarray]:
     xyz = np.where(np.isfinite(flat), flat, 0.0) @ _rgb_to_xyz_matrix().T
     ok = np.all(np.isfinite(flat), axis=1) & (xyz.sum(axis=1) > 0) & (xyz[:, 1] > 0)
     if np.any(ok):
-        cct[ok], duv[ok] = rgb_to_cct_duv(flat[ok])
+        with warnings.catch_warnings():   # far colours make colour-science warn; they become NaN
+            warnings.simplefilter("ignore")
+            cct[ok], duv[ok] = rgb_to_cct_duv(flat[ok])
     far = ~(np.isfinite(cct) & np.isfinite(duv) & (np.abs(duv) <= DUV_VALID_MAX)
             & (cct >= CCT_VALID_K[0]) & (cct <= CCT_VALID_K[1]))
     cct[far], duv[far] = np.nan, np.nan

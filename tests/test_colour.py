@@ -162,3 +162,36 @@ def test_bad_cct_duv_raise(cct_k, duv):
 def test_bad_inputs_raise(func, arg):
     with pytest.raises(ValueError):
         func(arg)
+
+
+# --- CCT / Duv of predicted colours (relight.colour.rgb_to_cct_duv_near_locus) ----------
+
+CCT_PUBLISHED_TOL_K = 5.0     # published CCTs are rounded to the kelvin
+DUV_PUBLISHED_TOL = 2e-4
+
+
+@pytest.mark.parametrize("xy, cct_k, duv", [
+    ((0.44757, 0.40745), 2856.0, 0.0),      # CIE illuminant A (CIE 15:2004): Planckian 2856 K
+    ((0.31271, 0.32902), 6504.0, 0.0032),   # CIE D65 (CIE 15:2004), Duv ~ +0.0032 (Ohno 2014)
+])
+def test_cct_duv_of_published_illuminants_through_rgb(xy, cct_k, duv):
+    rgb = rc.xy_to_rgb(np.array(xy))          # the illuminant as a linear sRGB light colour
+    got_cct, got_duv = rc.rgb_to_cct_duv_near_locus(rgb * 3.7)   # any scale
+    assert abs(float(got_cct) - cct_k) < CCT_PUBLISHED_TOL_K
+    assert abs(float(got_duv) - duv) < DUV_PUBLISHED_TOL
+
+
+def test_cct_near_locus_round_trip_and_far_colours_are_nan():
+    cct, duv = in_gamut_grid()
+    got_cct, got_duv = rc.rgb_to_cct_duv_near_locus(rc.cct_duv_to_rgb(cct, duv))
+    np.testing.assert_allclose(got_cct, cct, rtol=CCT_ROUND_TRIP_REL, atol=CCT_ROUND_TRIP_K)
+    np.testing.assert_allclose(got_duv, duv, atol=DUV_ROUND_TRIP)
+    # saturated primaries are far from the locus (|Duv| > 0.05 or no CCT in 1000-25000 K)
+    far = np.array([[0, 1, 0], [0, 0, 1], [1, 0, 0], [1, 0, 1], [0.2, 1.0, 0.2]], dtype=float)
+    c, d = rc.rgb_to_cct_duv_near_locus(far)
+    assert np.isnan(c).all() and np.isnan(d).all()
+    # just inside / outside the Duv threshold
+    c, d = rc.rgb_to_cct_duv_near_locus(rc.cct_duv_to_rgb([4000.0, 4000.0], [0.049, -0.049]))
+    assert np.isfinite(c).all()
+    assert rc.rgb_to_cct_duv_near_locus(np.zeros(3))[0].shape == ()
+    assert np.isnan(rc.rgb_to_cct_duv_near_locus(np.zeros(3))[0])

@@ -66,3 +66,38 @@ def test_bad_config_raises(bad):
 def test_config_round_trip():
     c = NetConfig(res=64, width=24)
     assert NetConfig.from_dict(c.to_dict()) == c
+
+
+def test_paper_arch_size_and_shapes():
+    from relight.net.model import ARCHES, PAPER_ARCH_NAME
+    net = LightNet(NetConfig.for_arch("paper"))
+    small = LightNet(NetConfig.for_arch("small"))
+    n = count_parameters(net)
+    assert 3e6 < n < 1.5e7                        # several million parameters (file <= 50 MB)
+    assert 4 * n < 50e6
+    assert flops_per_image(net) < 2 * flops_per_image(small)   # CPU-sized despite the parameters
+    y, kappa = net.forward_with_kappa(torch.rand(2, 3, 128, 128))
+    assert y.shape == (2, 7) and kappa.shape == (2,) and (kappa > 0).all()
+    assert net.config.arch_name == PAPER_ARCH_NAME == ARCHES["paper"]
+    assert NetConfig.from_dict(net.config.to_dict()) == net.config
+    with pytest.raises(ValueError, match="arch"):
+        NetConfig(arch="huge")
+
+
+def test_legacy_config_has_no_kappa_head():
+    # a config stored before arch / kappa_head existed: the small encoder, no kappa head
+    c = NetConfig.from_dict({"res": 128, "width": 32, "embed": 256, "head_hidden": 128, "grid": 4})
+    assert c.arch == "small" and not c.kappa_head
+    net = LightNet(c)
+    assert not any(k.startswith("kappa") for k in net.state_dict())
+    y, kappa = net.forward_with_kappa(torch.rand(1, 3, 64, 64))
+    assert kappa is None and y.shape == (1, 7)
+
+
+def test_kappa_head_sees_the_embedding_detached():
+    torch.manual_seed(0)
+    net = LightNet(NetConfig(res=32, width=8))
+    _, kappa = net.forward_with_kappa(torch.rand(2, 3, 32, 32))
+    kappa.sum().backward()
+    assert all(p.grad is None for n, p in net.named_parameters() if not n.startswith("kappa_head"))
+    assert all(p.grad is not None for n, p in net.named_parameters() if n.startswith("kappa_head"))

@@ -209,3 +209,19 @@ def test_shipped_model_still_loads_without_kappa():
     with torch.no_grad():
         y, kappa = model.forward_with_kappa(torch.rand(1, 3, model.config.res, model.config.res))
     assert y.shape == (1, 7) and (kappa is None) == (not model.has_kappa)
+
+
+def test_pan_halfwidth_of_a_cone():
+    # on the horizon a cone of radius r spans pan +- r; at tilt t it spans asin(sin r / cos t)
+    assert float(u.pan_halfwidth_deg(10.0, 0.0)) == pytest.approx(10.0)
+    assert float(u.pan_halfwidth_deg(10.0, 60.0)) == pytest.approx(math.degrees(math.asin(math.sin(math.radians(10))
+                                                                                       / math.cos(math.radians(60)))))
+    # a cone reaching the zenith holds every pan
+    assert float(u.pan_halfwidth_deg(10.0, 80.0)) == 180.0 and float(u.pan_halfwidth_deg(5.0, 89.0)) == 180.0
+    # brute force: the widest pan among directions inside the cone
+    mu = frames.direction(0.0, 50.0)
+    pan = np.linspace(-90, 90, 3601)
+    tilt = np.linspace(30, 70, 801)
+    P, T = np.meshgrid(pan, tilt)
+    inside = np.degrees(np.arccos(np.clip(frames.direction(P, T) @ mu, -1, 1))) <= 12.0
+    assert np.abs(P[inside]).max() == pytest.approx(float(u.pan_halfwidth_deg(12.0, 50.0)), abs=0.1)

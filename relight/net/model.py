@@ -56,6 +56,8 @@ class NetConfig:
         grid: spatial size of the feature map flattened into the embedding.
         arch: encoder, a key of :data:`ARCHES` ("small" or "paper").
         kappa_head: predict the vMF concentration of the direction too.
+        kappa_detach: the kappa head reads the embedding detached (its loss leaves the
+            encoder to the paper's terms); False lets it shape the shared features.
     """
     res: int = 128
     width: int = 32
@@ -64,6 +66,7 @@ class NetConfig:
     grid: int = 4
     arch: str = "small"
     kappa_head: bool = True
+    kappa_detach: bool = True
 
     def __post_init__(self):
         for name in ("res", "width", "embed", "head_hidden", "grid"):
@@ -74,8 +77,9 @@ class NetConfig:
             raise ValueError(f"NetConfig.res must be >= 16 pixels, got {self.res}")
         if self.arch not in ARCHES:
             raise ValueError(f"NetConfig.arch must be one of {', '.join(ARCHES)}, got {self.arch!r}")
-        if not isinstance(self.kappa_head, bool):
-            raise ValueError(f"NetConfig.kappa_head must be true or false, got {self.kappa_head!r}")
+        for name in ("kappa_head", "kappa_detach"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"NetConfig.{name} must be true or false, got {getattr(self, name)!r}")
 
     @classmethod
     def for_arch(cls, arch: str = "small", **kwargs) -> "NetConfig":
@@ -317,12 +321,13 @@ class LightNet(nn.Module):
         """``(y (N, 7), kappa (N,))``; kappa is the vMF concentration of the light
         direction (1 / steradian scale; ``None`` without a kappa head), divided by the
         fitted temperature when ``calibrated``. The kappa head reads the embedding
-        detached: its loss does not reach the encoder or the other heads."""
+        detached (unless ``config.kappa_detach`` is False): its loss then does not
+        reach the encoder or the other heads."""
         e = self.encode(x)
         y = self._light(e)
         if not self.config.kappa_head:
             return y, None
-        log_kappa = self.kappa_head(e.detach()).squeeze(1) + math.log(KAPPA_INIT)
+        log_kappa = self.kappa_head(e.detach() if self.config.kappa_detach else e).squeeze(1) + math.log(KAPPA_INIT)
         kappa = torch.exp(log_kappa.clamp(*LOG_KAPPA_RANGE))
         if calibrated:
             kappa = kappa / self.kappa_temperature

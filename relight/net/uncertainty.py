@@ -71,6 +71,19 @@ def cone_radius_deg(kappa, level: float = CONE_LEVEL) -> np.ndarray:
     return np.degrees(np.arccos(np.clip(1.0 - one_minus_cos, -1.0, 1.0)))
 
 
+def pan_halfwidth_deg(cone_deg, tilt_deg) -> np.ndarray:
+    """Half-width (degrees, [0, 180]) of the pan values inside a cone of radius
+    ``cone_deg`` around a direction of elevation ``tilt_deg``: on the sphere a cap of
+    angular radius r centred at colatitude c <= r holds the pole, so every pan (180);
+    otherwise the widest longitude of the cap is ``asin(sin r / sin c)``. Near the zenith a
+    narrow direction cone is a wide pan interval: pan is ill-defined there."""
+    r = np.radians(np.asarray(cone_deg, dtype=np.float64))
+    colat = np.radians(90.0 - np.abs(np.asarray(tilt_deg, dtype=np.float64)))
+    holds_pole = r >= colat
+    ratio = np.sin(r) / np.maximum(np.sin(colat), 1e-300)
+    return np.where(holds_pole, 180.0, np.degrees(np.arcsin(np.clip(ratio, 0.0, 1.0))))
+
+
 def direction_from_y(y: torch.Tensor, camera_tilt_deg: torch.Tensor) -> torch.Tensor:
     """World-frame unit vectors toward the light ``(N, 3)`` of 7-vectors ``(N, 7)``
     (raw network outputs are fine) for cameras at pan 0 and tilt ``camera_tilt_deg``
@@ -122,8 +135,11 @@ def spearman(a, b) -> float:
     return float(spearmanr(a, b).statistic)
 
 
-def uncertainty_summary(kappa, angle_deg, tilt_gt_deg=None, levels=RELIABILITY_LEVELS) -> dict:
-    """Calibration figures of calibrated ``kappa`` against the direction errors.
+def uncertainty_summary(kappa, angle_deg, tilt_gt_deg=None, levels=RELIABILITY_LEVELS,
+                        tilt_pred_deg=None) -> dict:
+    """Calibration figures of calibrated ``kappa`` against the direction errors
+    (with ``tilt_pred_deg``, the levels also give the pan half-width of the cones,
+    :func:`pan_halfwidth_deg`, and the fraction of cones holding the zenith).
 
     Returns ``{"n", "nll_mean", "cone90_coverage", "cone90_mean_deg", "cone90_median_deg",
     "spearman_cone90_error", "reliability": {"expected": [...], "observed": [...]},
@@ -142,8 +158,15 @@ def uncertainty_summary(kappa, angle_deg, tilt_gt_deg=None, levels=RELIABILITY_L
            "reliability": {"expected": [float(q) for q in levels], "observed": observed}}
     if tilt_gt_deg is not None:
         lev = metrics.tilt_level(tilt_gt_deg)
+        pan_hw = None if tilt_pred_deg is None else pan_halfwidth_deg(cone, tilt_pred_deg)
+
+        def pan_stats(mask):
+            if pan_hw is None or not np.any(mask):
+                return {}
+            return {"pan90_halfwidth_mean_deg": float(np.mean(pan_hw[mask])),
+                    "holds_zenith": float(np.mean(pan_hw[mask] >= 180.0))}
         out["cone90_by_tilt_level"] = {
-            name: {"n": int(np.sum(lev == name)),
+            name: {**pan_stats(lev == name), "n": int(np.sum(lev == name)),
                    "cone90_mean_deg": float(np.mean(cone[lev == name])) if np.any(lev == name) else None,
                    "direction_mean_deg": float(np.mean(a[lev == name])) if np.any(lev == name) else None,
                    "coverage": float(np.mean(a[lev == name] <= cone[lev == name])) if np.any(lev == name) else None}
@@ -163,13 +186,17 @@ def format_summary(s: dict) -> str:
              "| Observed | " + " | ".join(f"{o:.2f}" for o in s["reliability"]["observed"]) + " |"]
     by_level = s.get("cone90_by_tilt_level")
     if by_level:
-        lines += ["", "| Tilt level | n | 90% cone mean (deg) | direction error mean (deg) | coverage |",
-                  "|---|---:|---:|---:|---:|"]
+        lines += ["", "| Tilt level | n | 90% cone mean (deg) | direction error mean (deg) | coverage "
+                      "| pan half-width of the cone, mean (deg) | cones holding the zenith |",
+                  "|---|---:|---:|---:|---:|---:|---:|"]
         for name, v in by_level.items():
             lo, hi = metrics.TILT_LEVELS[name]
-            cells = [f"{v[k]:.2f}" if v[k] is not None else "-" for k in ("cone90_mean_deg", "direction_mean_deg")]
+            cells = [f"{v[k]:.2f}" if v.get(k) is not None else "-"
+                     for k in ("cone90_mean_deg", "direction_mean_deg", "pan90_halfwidth_mean_deg")]
             cov = f"{100 * v['coverage']:.1f}%" if v["coverage"] is not None else "-"
-            lines.append(f"| {name} [{lo:g}, {hi:g}{']' if name == 'L3' else ')'} | {v['n']} | {cells[0]} | {cells[1]} | {cov} |")
+            zen = f"{100 * v['holds_zenith']:.0f}%" if v.get("holds_zenith") is not None else "-"
+            lines.append(f"| {name} [{lo:g}, {hi:g}{']' if name == 'L3' else ')'} | {v['n']} | {cells[0]} | "
+                         f"{cells[1]} | {cov} | {cells[2]} | {zen} |")
     return "\n".join(lines) + "\n"
 
 
