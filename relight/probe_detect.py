@@ -32,8 +32,9 @@ EDGE_MIN_FRACTION = 0.3        # an edge weaker than 30% of the median edge stre
 REJECT_ROUNDS = 3               # outline fit: drop points beyond REJECT_SIGMAS robust sigmas
 REJECT_SIGMAS = 1.5
 REJECT_MIN_PX = 0.75
-EDGE_INLIER_PX = 1.5           # edge points this close to the fitted outline support it
-MIN_EDGE_SUPPORT = 0.45        # share of the outline with an edge needed to call it a sphere
+EDGE_INLIER_PX = 1.0           # edge points this close to the fitted outline support it
+SUPPORT_BAND_FRACTION = 0.25   # ... when they are the strongest edge within 25% of the radius
+MIN_EDGE_SUPPORT = 0.2         # share of the outline where it is the strongest edge, to call it a sphere
 MIN_RADIUS_FRACTION = 0.02     # detection radii, as fractions of the image's shorter side
 MAX_RADIUS_FRACTION = 0.45
 MAX_CANDIDATES = 30
@@ -105,7 +106,7 @@ def _polar_outline(camera: Camera, sphere: Sphere, angles: np.ndarray):
 
 
 def edge_points(smoothed: np.ndarray, camera: Camera, guess: Sphere, band_px: float,
-                angles: int = EDGE_ANGLES) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                angles: int = EDGE_ANGLES, prior: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Sub-pixel outline points (x, y) and their edge strengths along ``angles`` radial
     lines within ``band_px`` of the guessed outline (``smoothed``: the linear RGB image,
     clipped and smoothed by :data:`EDGE_SIGMA_PX`)."""
@@ -123,8 +124,9 @@ def edge_points(smoothed: np.ndarray, camera: Camera, guess: Sphere, band_px: fl
                         .reshape(xs.shape) for c in range(smoothed.shape[2])], -1)
     grad = np.linalg.norm(np.gradient(samples, step, axis=1), axis=-1)
     grad[~inside] = 0.0
-    # prefer edges near the guess: a sphere's own texture or reflections lie inside it
-    idx = np.argmax(grad * np.exp(-0.5 * (offsets / (0.5 * band_px)) ** 2)[None, :], axis=1)
+    # prefer edges near the guess (``prior``): a sphere's texture or reflections lie inside it
+    weight = np.exp(-0.5 * (offsets / (0.5 * band_px)) ** 2) if prior else np.ones_like(offsets)
+    idx = np.argmax(grad * weight[None, :], axis=1)
     rows = np.arange(angles)
     ok = (idx > 0) & (idx < len(offsets) - 1) & inside[rows, idx]
     g0 = grad[rows, np.clip(idx - 1, 0, None)]
@@ -145,8 +147,9 @@ def edge_points(smoothed: np.ndarray, camera: Camera, guess: Sphere, band_px: fl
 def refine_sphere(image: np.ndarray, camera: Camera, guess: Sphere, smoothed: np.ndarray | None = None,
                   first_band_px: float | None = None) -> tuple[Sphere, float]:
     """Fit the sphere to the image's edges near ``guess``; returns ``(sphere,
-    edge_support)``, ``edge_support`` being the share of radial lines whose edge lies within
-    :data:`EDGE_INLIER_PX` of the final outline."""
+    edge_support)``, ``edge_support`` being the share of radial lines whose strongest edge
+    within :data:`SUPPORT_BAND_FRACTION` of the radius lies within :data:`EDGE_INLIER_PX`
+    of the final outline."""
     if smoothed is None:
         smoothed = _edge_image(image)
     r = outline_circle(camera, guess)[2]
@@ -165,7 +168,10 @@ def refine_sphere(image: np.ndarray, camera: Camera, guess: Sphere, smoothed: np
                 break
             x, y = x[keep], y[keep]
             sphere = fit_sphere(camera, x, y)
-        support = _edge_support(camera, sphere, *edge_points(smoothed, camera, sphere, band)[:2])
+    # support: where the strongest edge in a wide band is the fitted outline itself (a
+    # narrow band would find some edge near any circle drawn on a textured image)
+    wide = max(4.0, SUPPORT_BAND_FRACTION * r)
+    support = _edge_support(camera, sphere, *edge_points(smoothed, camera, sphere, wide, prior=False)[:2])
     return sphere, support
 
 

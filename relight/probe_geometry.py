@@ -34,7 +34,8 @@ from scipy import ndimage, optimize
 HIGHLIGHT_FRACTION = 0.5       # highlight candidates: pixels >= half the brightest sphere pixel
 TIE_FRACTION = 0.98            # candidates within 2% of the peak count as equally bright (clipping)
 MAX_LIGHT_SPREAD_DEG = 8.0     # a blob spreading wider (rms, reflected directions) is not a light alone
-CORE_RIM_PX = 3                # ... then only its brightest core grown by 3 px is measured
+CORE_RIM_PX = 3                # a highlight reaching beyond its core grown by 3 px ...
+MERGED_FRACTION = 0.1          # ... with over 10% of its pixels touches other bright things
 RIM_EXCLUDE_PX = 1.0           # pixels within 1 px of the outline are mixed with the background
 MAX_RIM_ANGLE_DEG = 80.0       # normals more than 80 deg from the view ray are too foreshortened
 LIT_FRACTION = (0.25, 0.95)    # diffuse pixels used for the shading fit, as fractions of the peak
@@ -341,13 +342,19 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
 
     The light's core is the largest connected set of pixels within :data:`TIE_FRACTION`
     of the brightest usable pixel (the peak pixel itself when nothing clips) spanning at
-    most :data:`MAX_LIGHT_SPREAD_DEG` of reflected directions: the brighter a source, the
+    most :data:`MAX_LIGHT_SPREAD_DEG` of reflected directions (plus three pixels' worth,
+    as one pixel spans more directions near the rim): the brighter a source, the
     wider its clipped blob, while a hot pixel or a firefly stays tiny and a window or a lit
     wall spreads wider. The highlight is the connected region around that core of pixels
-    at least :data:`HIGHLIGHT_FRACTION` of the peak (only the core grown by
-    :data:`CORE_RIM_PX` when that region spreads wider, i.e. the light touches bright
-    surroundings), grown by two pixels; it gives the intensity-above-background and
-    solid-angle weighted mean of the reflected view rays.
+    at least :data:`HIGHLIGHT_FRACTION` of the peak, grown by two pixels; when more than
+    :data:`MERGED_FRACTION` of that region lies beyond the core grown by
+    :data:`CORE_RIM_PX` (the light touches bright surroundings, or the lobe is broad),
+    only the grown core counts, above the level just outside it. A compact highlight's direction is the view ray
+    through its centroid (weights: intensity above the local background), reflected: the
+    lens blurs the blob symmetrically in the image, and near the rim, where one pixel spans
+    many degrees, a mean over directions would not be. A broad one (wider than that
+    limit: a lobe from an extended source) is the mean of the
+    reflected view rays weighted by intensity and by each pixel's solid angle.
 
     Args:
         image: linear RGB ``(H, W, 3)`` or luminance ``(H, W)``.
@@ -371,16 +378,22 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     core_index = np.arange(1, n_cores + 1)
     core_sizes = np.asarray(ndimage.sum(np.ones_like(crop), cores, core_index))
     core_spreads = np.array([_spread_deg(refl[cores == k]) for k in core_index])
-    pool = core_spreads <= MAX_LIGHT_SPREAD_DEG
+    # one pixel spans more directions near the rim: allow three pixels' worth on top
+    cys, cxs = np.nonzero(cores > 0)
+    footprint_deg = math.degrees(math.sqrt(float(np.median(_solid_angle_weights(
+        camera, sphere, cxs + x0 + 0.5, cys + y0 + 0.5)))))
+    spread_limit = MAX_LIGHT_SPREAD_DEG + 3.0 * footprint_deg
+    pool = core_spreads <= spread_limit
     pool = pool if pool.any() else np.ones_like(pool)
     best_core = cores == int(core_index[pool][np.argmax(core_sizes[pool])])
     best = int(np.max(labels[best_core]))
     region = labels == best
     square = np.ones((3, 3))
-    if _spread_deg(refl[region]) > MAX_LIGHT_SPREAD_DEG:
-        # a light merged with broad bright surroundings: measure its core and rim only,
-        # above the level of the surroundings just outside that rim
-        grown = ndimage.binary_dilation(best_core, square, iterations=CORE_RIM_PX) & usable
+    near_core = ndimage.binary_dilation(best_core, square, iterations=CORE_RIM_PX) & usable
+    if (region & ~near_core).sum() > MERGED_FRACTION * region.sum():
+        # a light merged with bright surroundings (or a broad lobe): measure its core and
+        # rim only, above the level of the surroundings just outside that rim
+        grown = near_core
         ring = ndimage.binary_dilation(grown, square, iterations=2) & usable & ~grown
         region &= grown
         background = float(np.percentile(crop[ring], 90)) if ring.sum() >= 4 else floor
@@ -401,6 +414,11 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     to_light /= np.linalg.norm(to_light)
     px = float(np.average(xs + x0 + 0.5, weights=weights[ys, xs]))
     py = float(np.average(ys + y0 + 0.5, weights=weights[ys, xs]))
+    compact = _spread_deg(refl[region]) <= spread_limit
+    at_centroid = surface(camera, sphere, np.array([px]), np.array([py]))
+    if compact and at_centroid["hit"][0]:
+        # a small highlight: the lens blurs it symmetrically in the image, not in directions
+        to_light = at_centroid["reflect"][0]
     cos_view = float(np.average(s["cos_view"][ys, xs], weights=w))
     clipped = clip_level is not None and int((crop[region] >= 0.995 * clip_level).sum()) >= 2
     spread_deg = _spread_deg(refl[region])

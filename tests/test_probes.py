@@ -96,6 +96,10 @@ def test_probe_cli_writes_predictions(tmp_path, capsys):
     truth = np.loadtxt(os.path.join(DATA, "lights.txt"), skiprows=1)[3]
     pan, tilt = probes.camera_to_pan_tilt(truth, 0.0)
     assert metrics.direction_error_deg(pred.pan_deg, pred.tilt_deg, pan, tilt) < REAL_CHROME_MEDIAN_TOL_DEG * 2
-    assert main(["probe", "--chrome", f"{DATA}/chrome.3.png", "--out", str(tmp_path / "q.json")]) == 2
+    capsys.readouterr()
+    # a mask that is not an image: one line, exit 2, nothing written (without a mask the
+    # procedure finds the sphere itself; see tests/test_probe_perspective.py)
+    assert main(["probe", "--chrome", f"{DATA}/chrome.3.png", "--chrome-mask", f"{DATA}/README.md",
+                 "--out", str(tmp_path / "q.json")]) == 2
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
     assert not (tmp_path / "q.json").exists()
