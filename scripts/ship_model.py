@@ -39,7 +39,7 @@ def ship(run: str, train_data: str) -> dict:
     model = LightNet(config)
     model.load_state_dict(state)
     card = read_card(train_data)
-    meta = {"name": "sid2_small", "arch": "sid2-inception-small/v1", "config": config.to_dict(),
+    meta = {"name": "sid2_small", "arch": config.arch_name, "config": config.to_dict(),
             "parameters": count_parameters(model), "gflop_per_image": flops_per_image(model) / 1e9,
             "trained_epochs_total": len(rows), "best_epoch": best, "best_val_loss": info["val_loss"],
             "train_images_per_epoch": [int(rows[0]["n_train"]), int(rows[-1]["n_train"])],
@@ -47,7 +47,7 @@ def ship(run: str, train_data: str) -> dict:
             "train_time_s_to_best": sum(float(r["epoch_time_s"]) for r in rows[:best]),
             "train_dataset": {"path": train_data, "seed": card["seed"], "config": card["config"],
                               "records": len(read_manifest(train_data))},
-            "settings": info["settings"], "run": run}
+            "settings": info["settings"], "run": run, "kappa_temperature": info.get("kappa_temperature")}
     os.makedirs(MODELS_DIR, exist_ok=True)
     save_model(SHIPPED_MODEL, model, {k: meta[k] for k in ("name", "best_epoch", "best_val_loss",
                                                              "settings", "train_dataset")})
@@ -69,9 +69,14 @@ def level_rows(tables: dict, group: str, paper: dict) -> str:
 def write_card(meta: dict, eval_dir: str, test_data: str, notes: str) -> str:
     ev = json.load(open(os.path.join(eval_dir, "metrics.json")))
     report = open(os.path.join(eval_dir, "report.md")).read().split("\n", 4)[-1].strip()
+    if os.path.isfile(os.path.join(eval_dir, "reliability.png")):   # the cones' reliability diagram
+        shutil.copy(os.path.join(eval_dir, "reliability.png"), os.path.join(MODELS_DIR, "sid2_small_reliability.png"))
+        report = report.replace("](reliability.png)", "](sid2_small_reliability.png)")
     overall = ev["tables"]["overall"]
     s = meta["settings"]
     w = s["loss_weights"]
+    train_flags = (f"--arch {s.get('arch', 'small')} --kappa-weight {w.get('kappa', 0.0):g}"
+                   + (" --kappa-into-features" if not s.get("kappa_detach", True) else ""))
     rows = list(csv.DictReader(open(os.path.join(MODELS_DIR, "sid2_small_log.csv"))))
     drops = [f"{float(r['lr']):.0e} after epoch {r['epoch']}" for i, r in enumerate(rows)
              if i and float(r["lr"]) != float(rows[i - 1]["lr"])]
@@ -79,6 +84,10 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str) -> str:
     test_card = read_card(test_data)
     table1 = "\n".join(f"| {m.capitalize()} | {PAPER[m]:.2f} | {overall[m]['mean']:.2f} | "
                        f"{overall[m]['median']:.2f} |" for m in METRICS)
+    kappa_text = ""
+    if meta["config"].get("kappa_head"):
+        kappa_text = (", and a fourth giving the von Mises-Fisher concentration kappa of the direction "
+                      f"(trained by its NLL, temperature {meta.get('kappa_temperature', 1.0):.3f} fitted on val)")
     card = f"""# Model card: `sid2_small.safetensors`
 
 The paper's regression network (Sial et al., "Light Direction and Color Estimation from
@@ -89,7 +98,7 @@ dataset made by `relight generate`. It is the default model of `relight predict`
 ## Model
 - Architecture `{meta['arch']}` (`relight/net/model.py`): stem conv + split-inception modules
   (n x n factorised into 1 x n then n x 1) with pooling, a grid embedding, and three heads:
-  pan (sin/cos), tilt (sin/cos), colour (RGB, softplus). He-normal initialisation.
+  pan (sin/cos), tilt (sin/cos), colour (RGB, softplus){kappa_text}. He-normal initialisation.
 - {meta['parameters']:,} parameters; {meta['gflop_per_image']:.3f} GFLOP per 128 px image (forward).
 - Input: 128 x 128 8-bit sRGB scaled to [0, 1] (PNG/JPEG as is; EXR / linear arrays encoded
   with `relight.render.to_srgb8` first, like the dataset PNGs; other sizes centre-cropped to a
@@ -107,7 +116,8 @@ dataset made by `relight generate`. It is the default model of `relight predict`
 
 ## Training
 - `relight train --data {td['path']} --out RUN --epochs {s['epochs']} --patience {s['plateau_patience']} \\
-  --torch-threads {s['threads']} --loss-weights {w['pan']:g},{w['tilt']:g},{w['colour']:g} --max-minutes {s['max_minutes']:g}`
+  --torch-threads {s['threads']} --loss-weights {w['pan']:g},{w['tilt']:g},{w['colour']:g} --max-minutes {s['max_minutes']:g} \\
+  {train_flags}`
 - Adam lr {s['lr']:g}, ReduceLROnPlateau factor 0.1 (patience {s['plateau_patience']}) on the val loss,
   batch {s['batch_size']}, horizontal flips (pan_rel -> 360 - pan_rel), loss
   {w['pan']:g} x MSE(pan pair) + {w['tilt']:g} x MSE(tilt pair) + {w['colour']:g} x mean RGB angular error (radians).
@@ -141,7 +151,7 @@ Full report of `relight evaluate`:
 ```
 relight generate --count {td['records']} --out {td['path']} --seed {td['seed']} --spp {td['config']['spp']}
 relight generate --count {len(read_manifest(test_data))} --out {test_data} --seed {test_card['seed']} --spp {test_card['config']['spp']}
-relight train --data {td['path']} --out RUN --epochs {s['epochs']} --patience {s['plateau_patience']} --torch-threads {s['threads']} --loss-weights {w['pan']:g},{w['tilt']:g},{w['colour']:g} --max-minutes {s['max_minutes']:g}
+relight train --data {td['path']} --out RUN --epochs {s['epochs']} --patience {s['plateau_patience']} --torch-threads {s['threads']} --loss-weights {w['pan']:g},{w['tilt']:g},{w['colour']:g} --max-minutes {s['max_minutes']:g} {train_flags}
 .venv/bin/python scripts/ship_model.py --run RUN --train-data {td['path']} --test-data {test_data} --notes NOTES.md
 ```
 `relight evaluate --data {test_data} --split all --out REPORT` with the shipped model

@@ -2,6 +2,7 @@
 and the CLI's handling of bad inputs (one line on stderr, exit 2)."""
 import csv
 import json
+import math
 import os
 
 import numpy as np
@@ -98,7 +99,7 @@ def test_predict_paths_agree(tiny, model_file, tmp_path):
     for p in files:
         np.testing.assert_allclose(p["y"], arr["y"], atol=SAME_INPUT_ATOL)
     assert files[0]["id"] == "a" and "sRGB" in files[0]["assumed"] and "linear" in files[1]["assumed"]
-    assert set(arr) == {"pan_deg", "tilt_deg", "rgb", "y"}
+    assert set(arr) == {"pan_deg", "tilt_deg", "rgb", "y", "cct_k", "duv", "kappa", "cone90_deg"}
     assert np.linalg.norm(arr["rgb"]) == pytest.approx(1.0)
     assert 0 <= arr["pan_deg"] < 360
 
@@ -133,6 +134,22 @@ def test_cli_evaluate_writes_report(tiny, model_file, tmp_path):
     assert tables["overall"]["direction"]["mean"] == pytest.approx(mean_dir, abs=1e-3)
     assert "Table 2" in open(rep / "report.md").read()
     assert len(read_predictions(rep / "predictions.json").predictions) == 8
+    # the direction cones: reliability diagram, coverage and rank correlation
+    metrics_doc = json.load(open(rep / "metrics.json"))
+    unc = metrics_doc["uncertainty"]
+    assert (rep / "reliability.png").stat().st_size > 0
+    assert unc["n"] == 8 and 0 <= unc["cone90_coverage"] <= 1
+    assert len(unc["reliability"]["observed"]) == len(unc["reliability"]["expected"])
+    inside = np.mean([float(r["direction_err_deg"]) <= p.extra["cone90_deg"] for r, p in
+                      zip(rows, read_predictions(rep / "predictions.json").predictions)])
+    assert unc["cone90_coverage"] == pytest.approx(inside)
+    assert "90% cone coverage" in open(rep / "report.md").read()
+    # the colour as CCT: errors in kelvin and mireds over the images that have one
+    cct = metrics_doc["cct"]
+    assert cct["n"] + cct["n_no_cct"] == 8
+    if cct["n"]:
+        assert cct["kelvin"]["mean"] >= 0 and cct["mired"]["mean"] >= 0
+    assert "CCT (mired)" in open(rep / "report.md").read()
 
 
 def _one_line_error(capsys):
@@ -192,3 +209,84 @@ def test_time_budget_stops_after_an_epoch(tiny, tmp_path):
     assert row["epoch"] == 1  # the budget is checked before each epoch; the first always runs
     row = train(cfg, tmp_path / "budget", resume=True, progress=False)
     assert row["epoch"] == 2
+
+
+def test_training_calibrates_kappa_on_val(tiny, tmp_path):
+    from relight.net.uncertainty import fit_temperature
+    from relight.net.evaluate import errors_from_y, run_model
+    from relight.net.data import LightDataset
+    cfg = TrainConfig(data_dir=tiny, epochs=1, batch_size=4, res=RES, width=8, seed=2, val_split="all")
+    row = train(cfg, tmp_path / "cal", progress=False)
+    model = load_model_file(tmp_path / "cal" / "last.safetensors")
+    assert model.has_kappa and float(model.kappa_temperature) == pytest.approx(row["kappa_temperature"])
+    assert 0 <= row["val_cone90_cover"] <= 1 and math.isfinite(row["train_kappa_nll"])
+    # the stored temperature is the NLL minimiser on the val split: refitting gives 1
+    ds = LightDataset(tiny, "all", RES)
+    y, kappa = run_model(model, ds, with_kappa=True)
+    assert fit_temperature(kappa, errors_from_y(y, ds.truth())["direction"]) == pytest.approx(1.0, rel=1e-3)
+    assert model.info["kappa_temperature"] == pytest.approx(row["kappa_temperature"])
+
+
+def test_run_from_before_the_kappa_head_resumes_as_it_was(tiny, tmp_path):
+    """A checkpoint whose settings have no arch and no kappa weight (older runs) resumes
+    with --resume on the network it was trained with (no kappa head)."""
+    import dataclasses
+
+    from relight.net.loss import LossWeights
+    old = TrainConfig(data_dir=tiny, epochs=1, batch_size=4, res=RES, width=8,
+                      loss_weights=LossWeights(kappa=0.0))
+    run = tmp_path / "old"
+    train(old, run, progress=False)
+    ckpt = torch.load(run / "checkpoint.pt", weights_only=True)
+    assert not any(k.startswith("kappa") for k in ckpt["model"])
+    ckpt["settings"].pop("arch")
+    ckpt["settings"]["loss_weights"].pop("kappa")
+    torch.save(ckpt, run / "checkpoint.pt")
+    row = train(dataclasses.replace(old, epochs=2, loss_weights=LossWeights()), run, resume=True, progress=False)
+    assert row["epoch"] == 2
+    assert not load_model_file(run / "last.safetensors").has_kappa
+
+
+def test_paper_arch_trains_and_is_recorded(tiny, tmp_path):
+    cfg = TrainConfig(data_dir=tiny, epochs=1, batch_size=8, res=RES, width=8, arch="paper")
+    train(cfg, tmp_path / "paper", progress=False)
+    model = load_model_file(tmp_path / "paper")
+    assert model.config.arch == "paper" and model.config.arch_name == "sid2-inception-paper/v1"
+    from safetensors import safe_open
+    with safe_open(str(tmp_path / "paper" / "best.safetensors"), framework="pt") as f:
+        assert f.metadata()["arch"] == "sid2-inception-paper/v1"
+    with pytest.raises(DatasetError, match="arch"):
+        train(TrainConfig(data_dir=tiny, epochs=1, batch_size=8, res=RES, width=8), tmp_path / "paper", resume=True,
+              progress=False)   # an arch change cannot resume
+
+
+def test_kill_9_during_training_then_identical_command_resumes(tiny, tmp_path):
+    """A real SIGKILL of a training process at a random moment after its first
+    checkpoint; the identical command finishes the run with the weights of an
+    uninterrupted one (shuffling and flips depend on (seed, epoch) only)."""
+    import signal
+    import subprocess
+    import sys
+    import time
+    argv = ["train", "--data", tiny, "--epochs", "4", "--batch-size", "4", "--res", str(RES),
+            "--width", "8", "--seed", "3", "--quiet"]
+    straight, killed = tmp_path / "straight", tmp_path / "killed"
+    assert main(argv + ["--out", str(straight)]) == 0
+    proc = subprocess.Popen([sys.executable, "-m", "relight.cli"] + argv + ["--out", str(killed)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 300
+    while not (killed / "checkpoint.pt").exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    time.sleep(float(np.random.default_rng(7).uniform(0.0, 0.5)))
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    done = torch.load(killed / "checkpoint.pt", weights_only=True)["epoch"]
+    assert 1 <= done < 4, "the kill did not interrupt the run"
+    assert main(argv + ["--out", str(killed)]) == 0          # the identical command resumes
+    a = torch.load(straight / "checkpoint.pt", weights_only=True)
+    b = torch.load(killed / "checkpoint.pt", weights_only=True)
+    assert a["epoch"] == b["epoch"] == 4
+    for k in a["model"]:
+        assert torch.equal(a["model"][k], b["model"][k]), k
+    with open(killed / "log.csv") as f:
+        assert [r["epoch"] for r in csv.DictReader(f)] == [str(i) for i in range(1, 5)]

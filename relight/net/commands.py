@@ -3,18 +3,8 @@ from __future__ import annotations
 
 import os
 
-from relight.commands.argtypes import camera_tilt, finite_float, positive_int
-
-
-def _loss_weights(text: str):
-    import argparse
-
-    from relight.net.loss import LossWeights
-    try:
-        pan, tilt, colour = (float(v) for v in text.split(","))
-        return LossWeights(pan=pan, tilt=tilt, colour=colour)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected three finite numbers >= 0 like 1,1,1, got {text!r}") from None
+from relight.commands import argtypes as at
+from relight.commands.argtypes import camera_tilt
 
 
 def add_commands(sub) -> None:
@@ -23,22 +13,33 @@ def add_commands(sub) -> None:
                                    "on the train split of DATA; the val split drives the scheduler.")
     t.add_argument("--data", required=True, help="dataset folder (relight generate output)")
     t.add_argument("--out", required=True, help="run folder (checkpoints, log.csv, curves.png, settings.json)")
-    t.add_argument("--epochs", type=positive_int, default=10, help="total epochs (default 10)")
-    t.add_argument("--batch-size", type=positive_int, default=16, help="batch size (default 16, the paper's)")
-    t.add_argument("--lr", type=finite_float, default=2e-4, help="Adam learning rate (default 2e-4)")
-    t.add_argument("--res", type=positive_int, default=128, help="network input size, pixels (default 128)")
-    t.add_argument("--seed", type=int, default=0, help="initialisation/shuffle seed (default 0)")
-    t.add_argument("--patience", type=int, default=2, help="plateau patience in epochs (default 2)")
+    t.add_argument("--epochs", type=at.epochs, default=10, help="total epochs (default 10)")
+    t.add_argument("--batch-size", type=at.batch_size, default=16, help="batch size (default 16, the paper's)")
+    t.add_argument("--lr", type=at.learning_rate, default=2e-4, help="Adam learning rate (default 2e-4)")
+    t.add_argument("--res", type=at.net_resolution, default=128, help="network input size, pixels (default 128)")
+    t.add_argument("--seed", type=at.seed, default=0, help="initialisation/shuffle seed (default 0)")
+    t.add_argument("--patience", type=at.patience, default=2, help="plateau patience in epochs (default 2)")
     t.add_argument("--no-flip", action="store_true", help="disable horizontal-flip augmentation")
-    t.add_argument("--torch-threads", type=positive_int, default=1,
+    t.add_argument("--torch-threads", type=at.threads, default=1,
                    help="torch CPU threads (default 1: fastest on a busy 2-core machine)")
-    t.add_argument("--workers", type=int, default=0, help="DataLoader workers (default 0, images cached)")
-    t.add_argument("--loss-weights", type=_loss_weights, default="1,1,1", metavar="PAN,TILT,COLOUR",
+    t.add_argument("--workers", type=at.loader_workers, default=0, help="DataLoader workers (default 0, images cached)")
+    t.add_argument("--loss-weights", type=at.loss_weights, default="1,1,1", metavar="PAN,TILT,COLOUR",
                    help="alpha_1..3 of the paper's loss (colour per radian; default 1,1,1)")
-    t.add_argument("--width", type=positive_int, default=32, help="network base width (default 32)")
-    t.add_argument("--max-minutes", type=finite_float, default=None,
+    t.add_argument("--width", type=at.width, default=32, help="network base width (default 32)")
+    t.add_argument("--arch", choices=["small", "paper"], default="small",
+                   help="encoder: small (0.5 M parameters, CPU-sized) or paper (6.7 M, the paper's five "
+                        "modules at Inception-v3 proportions); recorded in the model file (default small)")
+    t.add_argument("--kappa-weight", type=at.float_in(0.0, 1e6, "a weight"), default=1.0,
+                   help="weight of the direction von Mises-Fisher NLL that trains the confidence (kappa) "
+                        "head; 0: no kappa head (default 1; it does not change the paper's terms)")
+    t.add_argument("--kappa-into-features", action="store_true",
+                   help="let the kappa NLL train the shared encoder too (default: the kappa head reads "
+                        "the embedding detached, so the paper's terms alone train the encoder)")
+    t.add_argument("--max-minutes", type=at.minutes, default=None,
                    help="stop after the epoch that passes this many minutes (resume later)")
-    t.add_argument("--resume", action="store_true", help="continue the run in --out")
+    t.add_argument("--resume", action="store_true",
+                   help="continue the run in --out with changed settings (e.g. more --epochs); "
+                        "re-running the identical command resumes without it")
     t.add_argument("--quiet", action="store_true", help="no progress bar")
     t.set_defaults(func=cmd_train)
 
@@ -63,11 +64,17 @@ def add_commands(sub) -> None:
 
 
 def cmd_train(args) -> int:
+    import dataclasses
+    from relight.fileio import check_folder_target, check_outputs
     from relight.net.train import TrainConfig, train
+    check_outputs([args.out], [args.data])
+    check_folder_target(args.out)
     cfg = TrainConfig(data_dir=args.data, epochs=args.epochs, batch_size=args.batch_size, lr=float(args.lr),
                       res=args.res, seed=args.seed, flip=not args.no_flip, plateau_patience=args.patience,
                       threads=args.torch_threads, workers=args.workers,
-                      max_minutes=args.max_minutes, loss_weights=args.loss_weights, width=args.width)
+                      max_minutes=args.max_minutes, width=args.width, arch=args.arch,
+                      kappa_detach=not args.kappa_into_features,
+                      loss_weights=dataclasses.replace(args.loss_weights, kappa=args.kappa_weight))
     row = train(cfg, args.out, resume=args.resume, progress=not args.quiet)
     if row:
         print(f"{args.out}: epoch {row['epoch']}, val loss {row['val_loss']:.4f}, val mean direction "
@@ -80,31 +87,53 @@ def cmd_evaluate(args) -> int:
 
     from relight import metrics
     from relight.net.evaluate import evaluate
+    from relight.fileio import check_folder_target, check_outputs
     from relight.net.predict import load_model
+    check_outputs([args.out], [args.data, args.model])
+    check_folder_target(args.out)
     torch.set_num_threads(1)
     model = load_model(args.model)
     name = args.model or "shipped model"
     tables = evaluate(model, args.data, args.out, split=args.split, model_name=name)
     print(metrics.format_tables({"overall": tables["overall"], "tilt_levels": tables["tilt_levels"],
                                  "pan_levels": tables["pan_levels"]}).split("**Table 2")[0].rstrip())
+    import json
+    with open(os.path.join(args.out, "metrics.json")) as f:
+        doc = json.load(f)
+    unc, cct = doc.get("uncertainty"), doc["cct"]
+    if cct["n"]:
+        print(f"CCT error: mean {cct['kelvin']['mean']:.0f} K, {cct['mired']['mean']:.1f} mired "
+              f"({cct['n']} images with a CCT)")
+    if unc:
+        rho = unc["spearman_cone90_error"]
+        print(f"90% direction cones cover {100 * unc['cone90_coverage']:.1f}% of true directions; "
+              f"rank correlation cone vs error {'-' if rho is None else f'{rho:.2f}'}; "
+              f"reliability diagram {os.path.join(args.out, 'reliability.png')}")
     print(f"report: {os.path.join(args.out, 'report.md')}")
     return 0
 
 
 def cmd_predict(args) -> int:
     from relight.net.predict import DEFAULT_CAMERA_TILT_DEG, list_images, load_model, predict_files
+    from relight.fileio import check_file_target, check_outputs
     from relight.predictions import write_predictions
+    check_outputs([args.out], args.images + [args.model])
+    check_file_target(args.out)
     model = load_model(args.model)
     files = list_images(args.images)
+    check_outputs([args.out], files)
     tilt = DEFAULT_CAMERA_TILT_DEG if args.camera_tilt is None else args.camera_tilt
     preds = predict_files(model, files, tilt)
     print(f"camera tilt assumed: {tilt:g} deg{' (default, as the paper for photographs)' if args.camera_tilt is None else ''}")
-    print(f"{'id':<20} {'pan_rel':>8} {'tilt':>7}  {'rgb (unit)':<22} input")
+    print(f"{'id':<20} {'pan_rel':>8} {'tilt':>7} {'cone90':>7}  {'rgb (unit)':<22} {'CCT K':>6} input")
     for p in preds:
         rgb = ",".join(f"{v:.3f}" for v in p["rgb"])
-        print(f"{p['id'][:20]:<20} {p['pan_deg']:8.1f} {p['tilt_deg']:7.1f}  {rgb:<22} {p['assumed']}")
-    entries = [{"id": p["id"], "pan_deg": p["pan_deg"], "tilt_deg": p["tilt_deg"], "rgb": p["rgb"],
-                "y": p["y"], "file": os.path.abspath(p["file"])} for p in preds]
-    write_predictions(args.out, entries, model=args.model or "shipped", camera_tilt_deg=tilt)
+        cone = f"{p['cone90_deg']:7.1f}" if "cone90_deg" in p else f"{'-':>7}"
+        cct = f"{p['cct_k']:6.0f}" if p["cct_k"] is not None else f"{'-':>6}"
+        print(f"{p['id'][:20]:<20} {p['pan_deg']:8.1f} {p['tilt_deg']:7.1f} {cone}  {rgb:<22} {cct} {p['assumed']}")
+    fields = ("id", "pan_deg", "tilt_deg", "rgb", "y", "cct_k", "duv", "kappa", "cone90_deg")
+    entries = [{k: p[k] for k in fields if k in p} | {"file": os.path.abspath(p["file"])} for p in preds]
+    write_predictions(args.out, entries, model=args.model or "shipped", camera_tilt_deg=tilt,
+                      inputs=files)
     print(f"wrote {args.out} ({len(entries)} predictions)")
     return 0

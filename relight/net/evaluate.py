@@ -3,10 +3,14 @@ constancy statistics, a per-image CSV and a ``relight.predictions/v1`` file.
 
 Report folder contents:
     report.md          Tables 1-3 (mean, median) + trimean / best 25% / worst 25%
-    metrics.json       the same numbers, machine-readable (relight.metrics.error_tables)
+    metrics.json       the same numbers, machine-readable (relight.metrics.error_tables),
+                       plus ``cct`` (CCT error in kelvin and mireds) and, for a model
+                       with a kappa head, ``uncertainty`` (relight.net.uncertainty)
     per_image.csv      id, truth, prediction and the four errors of every image
     predictions.json   relight.predictions/v1 (pan_deg = predicted pan_rel, tilt_deg,
-                       rgb unit norm, and the raw y), the input of ``relight compare``
+                       rgb unit norm, and the raw y; cct_k, duv; kappa, cone90_deg),
+                       the input of ``relight compare``
+    reliability.png    reliability diagram of the direction cones (kappa head only)
 """
 from __future__ import annotations
 
@@ -24,22 +28,31 @@ from relight.net.data import LightDataset
 COLOUR_STATS = ("mean", "median", "trimean", "best25", "worst25")
 
 
-def run_model(model, dataset: LightDataset, batch_size: int = 64) -> np.ndarray:
+def run_model(model, dataset: LightDataset, batch_size: int = 64, with_kappa: bool = False):
     """Raw network outputs ``(N, 7)`` float64 for every item of ``dataset`` (eval mode,
-    no augmentation); the model's train/eval mode is restored afterwards."""
+    no augmentation); the model's train/eval mode is restored afterwards. With
+    ``with_kappa``: ``(y, kappa)``, kappa the calibrated direction concentration ``(N,)``
+    (None for a model without a kappa head)."""
     was_training = model.training
     model.eval()
-    out = []
+    out, kappas = [], []
     try:
         with torch.no_grad():
             for start in range(0, len(dataset), batch_size):
                 idx = range(start, min(start + batch_size, len(dataset)))
                 x = torch.stack([torch.from_numpy(dataset.image_srgb8(i).transpose(2, 0, 1).astype(np.float32)
                                                   / 255.0) for i in idx])
-                out.append(model(x).double().numpy())
+                y, kappa = model.forward_with_kappa(x) if with_kappa else (model(x), None)
+                out.append(y.double().numpy())
+                if kappa is not None:
+                    kappas.append(kappa.double().numpy())
     finally:
         model.train(was_training)
-    return np.concatenate(out) if out else np.zeros((0, 7))
+    y = np.concatenate(out) if out else np.zeros((0, 7))
+    if not with_kappa:
+        return y
+    has_kappa = getattr(model, "has_kappa", False)
+    return y, (np.concatenate(kappas) if kappas else np.zeros(0)) if has_kappa else None
 
 
 def decode_outputs(y_pred: np.ndarray, camera_tilt_deg) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -49,6 +62,45 @@ def decode_outputs(y_pred: np.ndarray, camera_tilt_deg) -> tuple[np.ndarray, np.
     rgb = np.clip(np.asarray(rgb, dtype=np.float64), 0.0, None)
     rgb = rgb / np.maximum(np.linalg.norm(rgb, axis=-1, keepdims=True), 1e-300)
     return pan, tilt, rgb
+
+
+def extra_fields(rgb: np.ndarray, kappa: np.ndarray | None) -> list[dict]:
+    """Optional predictions-file fields of each image: ``cct_k`` and ``duv`` of the
+    predicted colour (None = null where it is far from the Planckian locus, see
+    :func:`relight.colour.rgb_to_cct_duv_near_locus`), and with a kappa head ``kappa``
+    and ``cone90_deg`` (radius of the 90% cone of the direction, degrees)."""
+    from relight.colour import rgb_to_cct_duv_near_locus
+    from relight.net.uncertainty import CONE_LEVEL, cone_radius_deg
+    cct, duv = rgb_to_cct_duv_near_locus(rgb)
+    out = [{"cct_k": None if np.isnan(c) else round(float(c), 1),
+            "duv": None if np.isnan(d) else round(float(d), 5)} for c, d in zip(cct, duv)]
+    if kappa is not None:
+        cone = cone_radius_deg(kappa, CONE_LEVEL)
+        for o, k, c in zip(out, kappa, cone):
+            o["kappa"], o["cone90_deg"] = float(k), float(c)
+    return out
+
+
+def cct_errors(cct_pred_k, cct_true_k) -> dict:
+    """CCT errors where the prediction has a CCT: ``{"n", "n_no_cct", "kelvin": {mean,
+    median}, "mired": {mean, median}}`` (absolute differences; mired = 1e6 / K)."""
+    p, t = np.asarray(cct_pred_k, dtype=np.float64), np.asarray(cct_true_k, dtype=np.float64)
+    ok = np.isfinite(p) & np.isfinite(t)
+    dk, dm = np.abs(p[ok] - t[ok]), np.abs(1e6 / p[ok] - 1e6 / t[ok])
+    stat = (lambda a: {"mean": float(np.mean(a)), "median": float(np.median(a))} if a.size
+            else {"mean": None, "median": None})
+    return {"n": int(ok.sum()), "n_no_cct": int((~ok).sum()), "kelvin": stat(dk), "mired": stat(dm)}
+
+
+def _format_cct(c: dict, colour: dict) -> str:
+    f = (lambda v: "-" if v is None else f"{v:.1f}")
+    return ("**Colour as correlated colour temperature**\n\n"
+            "| Error | Mean | Median |\n|---|---:|---:|\n"
+            f"| Colour, angular (deg) | {colour['mean']:.2f} | {colour['median']:.2f} |\n"
+            f"| CCT (K) | {f(c['kelvin']['mean'])} | {f(c['kelvin']['median'])} |\n"
+            f"| CCT (mired) | {f(c['mired']['mean'])} | {f(c['mired']['median'])} |\n\n"
+            f"{c['n']} images; {c['n_no_cct']} predicted colours far from the Planckian locus "
+            "(|Duv| > 0.05 or CCT outside 1000-25000 K) have no CCT and are left out.\n")
 
 
 def errors_from_y(y_pred: np.ndarray, truth: dict) -> dict:
@@ -78,21 +130,55 @@ def evaluate(model, data_dir: str | os.PathLike, out_dir: str | os.PathLike, spl
     dataset = LightDataset(data_dir, split, model.config.res, cache=False)
     if len(dataset) == 0:
         raise DatasetError(f"{data_dir}: no records in split {split!r} (try --split all)")
-    y_pred = run_model(model, dataset, batch_size)
+    y_pred, kappa = run_model(model, dataset, batch_size, with_kappa=True)
     truth = dataset.truth()
     pan, tilt, rgb = decode_outputs(y_pred, truth["camera_tilt_deg"])
     errors = metrics.light_errors(pan, tilt, rgb, truth["pan_rel_deg"], truth["tilt_deg"], truth["rgb"])
     tables = metrics.error_tables(errors, truth["tilt_deg"], truth["pan_rel_deg"])
+    extras = extra_fields(rgb, kappa)
+    from relight.colour import rgb_to_cct_duv_near_locus
+    cct_true = np.array([r["light"].get("cct_k", np.nan) if isinstance(r.get("light"), dict) else np.nan
+                         for r in dataset.records], dtype=np.float64)
+    missing = ~np.isfinite(cct_true)
+    if missing.any():   # datasets without a stored CCT: the true colour's
+        cct_true[missing] = rgb_to_cct_duv_near_locus(truth["rgb"][missing])[0]
+    cct = cct_errors([np.nan if e["cct_k"] is None else e["cct_k"] for e in extras], cct_true)
+    uncertainty = None
+    if kappa is not None:
+        from relight.net.uncertainty import format_summary, plot_reliability, uncertainty_summary
+        uncertainty = uncertainty_summary(kappa, errors["direction"], truth["tilt_deg"], tilt_pred_deg=tilt)
 
-    os.makedirs(out_dir, exist_ok=True)
+    from relight.fileio import Transaction
+    from relight.predictions import write_predictions
     header = (f"# Evaluation of {model_name or 'model'}\n\ndataset: {os.path.abspath(data_dir)} "
               f"(split {split}, {len(dataset)} images)\n\n")
-    with open(os.path.join(out_dir, "report.md"), "w") as f:
-        f.write(header + metrics.format_tables(tables) + "\n" + _stats_table(errors))
-    with open(os.path.join(out_dir, "metrics.json"), "w") as f:
-        json.dump({"model": model_name, "dataset": os.path.abspath(data_dir), "split": split,
-                   "n": len(dataset), "tables": tables}, f, indent=1)
-    with open(os.path.join(out_dir, "per_image.csv"), "w", newline="") as f:
+    entries = [{"id": pid, "pan_deg": float(pan[i]), "tilt_deg": float(tilt[i]),
+                "rgb": [float(v) for v in rgb[i]], "y": [float(v) for v in y_pred[i]], **extras[i]}
+               for i, pid in enumerate(truth["id"])]
+    with Transaction(inputs=[data_dir]) as t:   # the four files, all or none
+        t.makedirs(out_dir)
+        t.stage_text(os.path.join(out_dir, "report.md"),
+                     header + metrics.format_tables(tables) + "\n" + _stats_table(errors) + "\n"
+                     + _format_cct(cct, tables["overall"]["colour"])
+                     + ("\n" + format_summary(uncertainty) + "\n![reliability](reliability.png)\n"
+                        if uncertainty else ""))
+        t.stage_text(os.path.join(out_dir, "metrics.json"), json.dumps(
+            {"model": model_name, "dataset": os.path.abspath(data_dir), "split": split,
+             "n": len(dataset), "tables": tables, "cct": cct,
+             **({"uncertainty": uncertainty} if uncertainty else {})}, indent=1))
+        if uncertainty:
+            t.stage(os.path.join(out_dir, "reliability.png"),
+                    lambda tmp: plot_reliability(uncertainty, tmp, f"{model_name or 'model'}: 90% cone covers "
+                                                 f"{100 * uncertainty['cone90_coverage']:.1f}%"))
+        t.stage(os.path.join(out_dir, "per_image.csv"),
+                lambda tmp: _write_per_image(tmp, truth, pan, tilt, rgb, errors))
+        write_predictions(os.path.join(out_dir, "predictions.json"), entries,
+                          dataset=os.path.abspath(data_dir), model=model_name, split=split, transaction=t)
+    return tables
+
+
+def _write_per_image(path: str, truth: dict, pan, tilt, rgb, errors) -> None:
+    with open(path, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["id", "camera_tilt_deg", "pan_rel_gt_deg", "tilt_gt_deg", "r_gt", "g_gt", "b_gt",
                     "pan_rel_pred_deg", "tilt_pred_deg", "r_pred", "g_pred", "b_pred",
@@ -101,10 +187,3 @@ def evaluate(model, data_dir: str | os.PathLike, out_dir: str | os.PathLike, spl
             w.writerow([pid, truth["camera_tilt_deg"][i], truth["pan_rel_deg"][i], truth["tilt_deg"][i],
                         *np.round(truth["rgb"][i], 6), round(float(pan[i]), 4), round(float(tilt[i]), 4),
                         *np.round(rgb[i], 6), *(round(float(errors[m][i]), 4) for m in metrics.METRICS)])
-    from relight.predictions import write_predictions
-    entries = [{"id": pid, "pan_deg": float(pan[i]), "tilt_deg": float(tilt[i]),
-                "rgb": [float(v) for v in rgb[i]], "y": [float(v) for v in y_pred[i]]}
-               for i, pid in enumerate(truth["id"])]
-    write_predictions(os.path.join(out_dir, "predictions.json"), entries, dataset=os.path.abspath(data_dir),
-                      model=model_name, split=split)
-    return tables

@@ -2,7 +2,7 @@
 
 A model file ``*.safetensors`` holds the network's state dict (float32 weights and
 batch-norm buffers) and string metadata: ``format`` (= :data:`MODEL_FORMAT`),
-``arch`` (= :data:`relight.net.model.ARCH_NAME`), ``config`` (the
+``arch`` (a name of :data:`relight.net.model.ARCHES`), ``config`` (the
 :class:`~relight.net.model.NetConfig` as JSON) and ``info`` (free JSON: training
 settings, data, epoch). Anything else -- a missing file, a different format, wrong
 tensor names or shapes -- raises :class:`ModelFileError` with a one-line reason.
@@ -14,7 +14,7 @@ import os
 
 import torch
 
-from relight.net.model import ARCH_NAME, LightNet, NetConfig
+from relight.net.model import ARCHES, LightNet, NetConfig
 
 MODEL_FORMAT = "relight.model/v1"
 MODELS_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "models")
@@ -30,12 +30,14 @@ def save_model(path: str | os.PathLike, model: LightNet, info: dict | None = Non
     from safetensors.torch import save_file
     path = os.fspath(path)
     state = {k: v.detach().cpu().contiguous() for k, v in model.state_dict().items()}
-    meta = {"format": MODEL_FORMAT, "arch": ARCH_NAME,
+    meta = {"format": MODEL_FORMAT, "arch": model.config.arch_name,
             "config": json.dumps(model.config.to_dict()), "info": json.dumps(info or {})}
-    tmp = f"{path}.tmp{os.getpid()}"
-    save_file(state, tmp, metadata=meta)
-    os.chmod(tmp, 0o644)  # a shipped, readable package file
-    os.replace(tmp, path)
+    from relight.fileio import atomic_write
+
+    def write(tmp):
+        save_file(state, tmp, metadata=meta)
+        os.chmod(tmp, 0o644)  # a shipped, readable package file
+    atomic_write(path, write)
 
 
 def read_model_file(path: str | os.PathLike) -> tuple[NetConfig, dict, dict]:
@@ -58,10 +60,12 @@ def read_model_file(path: str | os.PathLike) -> tuple[NetConfig, dict, dict]:
         raise ModelFileError(f"{path}: not a readable safetensors model ({text})") from None
     if meta.get("format") != MODEL_FORMAT:
         raise ModelFileError(f"{path}: expected a {MODEL_FORMAT!r} model, got format {meta.get('format')!r}")
-    if meta.get("arch") != ARCH_NAME:
-        raise ModelFileError(f"{path}: unsupported architecture {meta.get('arch')!r} (expected {ARCH_NAME!r})")
+    arch = {name: key for key, name in ARCHES.items()}.get(meta.get("arch"))
+    if arch is None:
+        raise ModelFileError(f"{path}: unsupported architecture {meta.get('arch')!r} "
+                             f"(expected one of {', '.join(map(repr, ARCHES.values()))})")
     try:
-        config = NetConfig.from_dict(json.loads(meta.get("config", "")))
+        config = NetConfig.from_dict(json.loads(meta.get("config", "")) | {"arch": arch})
         info = json.loads(meta.get("info", "{}"))
     except (json.JSONDecodeError, TypeError, ValueError) as exc:
         raise ModelFileError(f"{path}: bad model metadata ({str(exc).splitlines()[0][:120]})") from None

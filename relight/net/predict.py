@@ -16,7 +16,7 @@ import torch
 
 from relight import frames
 from relight.net.data import prepare_srgb8
-from relight.net.evaluate import decode_outputs
+from relight.net.evaluate import decode_outputs, extra_fields
 from relight.net.io import SHIPPED_MODEL, ModelFileError, load_model_file
 
 DEFAULT_CAMERA_TILT_DEG = frames.PHOTO_CAMERA_TILT_DEG  # the paper's assumption for photographs
@@ -46,16 +46,20 @@ def _predict_inputs(model, inputs: list[torch.Tensor], camera_tilt_deg, batch_si
     if not np.all(np.isfinite(tilts)):
         raise ValueError("camera tilts must be finite degrees")
     model.eval()
-    ys = []
+    ys, kappas = [], []
     with torch.no_grad():
         for s in range(0, len(inputs), batch_size):
-            ys.append(model(torch.stack(inputs[s:s + batch_size])).double().numpy())
+            y, kappa = model.forward_with_kappa(torch.stack(inputs[s:s + batch_size]))
+            ys.append(y.double().numpy())
+            if kappa is not None:
+                kappas.append(kappa.double().numpy())
     if not ys:
         return []
     y = np.concatenate(ys)
     pan, tilt, rgb = decode_outputs(y, tilts)
+    extras = extra_fields(rgb, np.concatenate(kappas) if kappas else None)
     return [{"pan_deg": float(pan[i]), "tilt_deg": float(tilt[i]), "rgb": [float(v) for v in rgb[i]],
-             "y": [float(v) for v in y[i]]} for i in range(len(inputs))]
+             "y": [float(v) for v in y[i]], **extras[i]} for i in range(len(inputs))]
 
 
 def predict_arrays(model, images_linear: list[np.ndarray], camera_tilt_deg: list[float]) -> list[dict]:
@@ -70,7 +74,9 @@ def predict_arrays(model, images_linear: list[np.ndarray], camera_tilt_deg: list
     Returns:
         One dict per image: ``pan_deg`` (light pan relative to the camera, [0, 360),
         0 = front, 90 = camera's right), ``tilt_deg`` (light elevation), ``rgb``
-        (unit norm, linear) and ``y`` (the raw 7-vector).
+        (unit norm, linear), ``y`` (the raw 7-vector), ``cct_k`` and ``duv`` (None
+        where the colour is far from the Planckian locus) and, for a model with a
+        kappa head, ``kappa`` and ``cone90_deg`` (radius of the 90% cone, degrees).
     """
     from relight.render import to_srgb8
     res = model.config.res

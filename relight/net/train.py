@@ -10,7 +10,9 @@ A run folder holds:
     log.csv            one row per epoch (losses, val errors in degrees, lr, time)
     curves.png         the curves of log.csv
 
-Resuming (``resume=True``) continues from checkpoint.pt to ``epochs``; the shuffling
+Re-running the identical command continues an interrupted run; ``resume=True`` also
+continues one whose settings changed in ways that keep it meaningful (``epochs``,
+``lr``, ``patience``...). Resuming continues from checkpoint.pt to ``epochs``; the shuffling
 and flip augmentation depend only on (seed, epoch), so an interrupted and resumed run
 follows the same path as an uninterrupted one. A dataset still being generated may be
 used: the manifest is re-read at the start of each epoch (``grow``).
@@ -21,7 +23,6 @@ import csv
 import json
 import math
 import os
-import pickle
 import time
 from dataclasses import asdict, dataclass, field
 
@@ -29,18 +30,21 @@ import numpy as np
 import torch
 
 from relight.dataset import DatasetError
+from relight.fileio import FolderLock, atomic_write, write_json
 from relight.net.data import LightDataset
 from relight.net.evaluate import errors_from_y, run_model
 from relight.net.io import save_model
 from relight.net.loss import LossWeights, light_loss
-from relight.net.model import LightNet, NetConfig, count_parameters
+from relight.net.model import ARCHES, LightNet, NetConfig, count_parameters
+from relight.net.uncertainty import fit_temperature, uncertainty_summary
 
 CHECKPOINT = "checkpoint.pt"
 SETTINGS = "settings.json"
 LOG = "log.csv"
 LOG_FIELDS = ["epoch", "lr", "n_train", "n_val", "train_loss", "train_pan", "train_tilt", "train_colour_rad",
               "val_loss", "val_pan_deg", "val_tilt_deg", "val_direction_deg", "val_colour_deg",
-              "epoch_time_s", "train_img_per_s"]
+              "epoch_time_s", "train_img_per_s", "train_kappa_nll", "val_kappa_nll", "val_cone90_cover",
+              "kappa_temperature"]
 
 
 @dataclass(frozen=True)
@@ -62,6 +66,9 @@ class TrainConfig:
             to the train split (tiny datasets).
         loss_weights: alpha_1..3 of the loss.
         width: network base width (see NetConfig).
+        arch: encoder, ``"small"`` or ``"paper"`` (:data:`relight.net.model.ARCHES`).
+        kappa_detach: the kappa head reads the embedding detached (default; see
+            :attr:`relight.net.model.NetConfig.kappa_detach`).
         max_minutes: stop after the first epoch that ends past this wall time
             (minutes from the start of this invocation; None: no limit). A later
             ``resume`` continues from there.
@@ -82,6 +89,8 @@ class TrainConfig:
     loss_weights: LossWeights = field(default_factory=LossWeights)
     width: int = 32
     max_minutes: float | None = None
+    arch: str = "small"
+    kappa_detach: bool = True
 
     def __post_init__(self):
         for name in ("epochs", "batch_size", "res", "threads"):
@@ -90,6 +99,15 @@ class TrainConfig:
                 raise DatasetError(f"{name} must be a positive integer, got {v!r}")
         if self.workers < 0 or self.plateau_patience < 0:
             raise DatasetError("workers and plateau_patience must be >= 0")
+        if not (isinstance(self.seed, int) and 0 <= self.seed < 2 ** 32):
+            raise DatasetError(f"seed must be an integer in [0, 2**32), got {self.seed!r}")
+        if self.max_minutes is not None and not (0 <= self.max_minutes < math.inf):
+            raise DatasetError(f"max_minutes must be a finite number >= 0, got {self.max_minutes!r}")
+        w = self.loss_weights
+        if max(w.pan, w.tilt, w.colour) <= 0:
+            raise DatasetError("loss weights must not all be zero")
+        if self.arch not in ARCHES:
+            raise DatasetError(f"arch must be one of {', '.join(ARCHES)}, got {self.arch!r}")
         if not (isinstance(self.lr, float) and 0 < self.lr < 1):
             raise DatasetError(f"lr must be in (0, 1), got {self.lr!r}")
 
@@ -98,9 +116,25 @@ class TrainConfig:
 
 
 def _check_resume_compatible(saved: dict, cfg: TrainConfig) -> None:
-    for key in ("res", "batch_size", "seed", "width", "flip"):
+    for key in ("res", "batch_size", "seed", "width", "flip", "arch", "kappa_detach"):
         if key in saved and saved[key] != getattr(cfg, key):
             raise DatasetError(f"cannot resume: {key} was {saved[key]!r} in this run, now {getattr(cfg, key)!r}")
+
+
+def net_config(cfg: TrainConfig, saved: dict | None = None) -> NetConfig:
+    """The network of a run: ``cfg``'s, or for a resumed run the one its checkpoint's
+    settings describe (runs from before the kappa head and ``arch`` continue as they were)."""
+    if saved is None:
+        return NetConfig.for_arch(cfg.arch, res=cfg.res, width=cfg.width,
+                                  kappa_head=cfg.loss_weights.kappa > 0, kappa_detach=cfg.kappa_detach)
+    weights = saved.get("loss_weights") or {}
+    return NetConfig.for_arch(saved.get("arch", "small"), res=cfg.res, width=cfg.width,
+                              kappa_head=float(weights.get("kappa", 0.0)) > 0,
+                              kappa_detach=bool(saved.get("kappa_detach", True)))
+
+
+def _camera_tilts(dataset: LightDataset, index) -> torch.Tensor:
+    return torch.tensor([float(dataset.records[int(i)]["camera"]["tilt_deg"]) for i in index])
 
 
 def _epoch_order(n: int, seed: int, epoch: int) -> list[int]:
@@ -109,19 +143,32 @@ def _epoch_order(n: int, seed: int, epoch: int) -> list[int]:
 
 
 def _save_checkpoint(path: str, state: dict) -> None:
-    tmp = f"{path}.tmp{os.getpid()}"
-    torch.save(state, tmp)
-    os.replace(tmp, path)
+    atomic_write(path, lambda tmp: torch.save(state, tmp))
+
+
+def _load_checkpoint(path: str) -> dict:
+    """The checkpoint's state, checked; :class:`DatasetError` (one line) if it is empty,
+    corrupt, truncated or not a relight checkpoint."""
+    try:
+        state = torch.load(path, weights_only=True)
+    except Exception as exc:  # noqa: BLE001 - torch raises many types for bad files
+        text = str(exc).splitlines()[0][:100] if str(exc) else type(exc).__name__
+        raise DatasetError(f"{path}: cannot read checkpoint ({text}); delete it to start over") from None
+    keys = ("model", "optimiser", "scheduler", "epoch", "history", "best_val_loss", "settings", "torch_rng")
+    if not isinstance(state, dict) or any(k not in state for k in keys) \
+            or not isinstance(state["settings"], dict) or not isinstance(state["history"], list):
+        raise DatasetError(f"{path}: not a relight training checkpoint; delete it to start over")
+    return state
 
 
 def _write_log(path: str, rows: list[dict]) -> None:
-    tmp = f"{path}.tmp{os.getpid()}"
-    with open(tmp, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=LOG_FIELDS)
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: r.get(k, "") for k in LOG_FIELDS})
-    os.replace(tmp, path)
+    def write(tmp):
+        with open(tmp, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=LOG_FIELDS)
+            w.writeheader()
+            for r in rows:
+                w.writerow({k: r.get(k, "") for k in LOG_FIELDS})
+    atomic_write(path, write)
 
 
 def plot_curves(rows: list[dict], path: str) -> None:
@@ -139,22 +186,57 @@ def plot_curves(rows: list[dict], path: str) -> None:
         b.plot(ep, [r[key] for r in rows], "o-", label=lab)
     b.set_xlabel("epoch"), b.set_ylabel("mean val error (deg)"), b.legend(), b.grid(alpha=0.3)
     fig.tight_layout()
-    tmp = f"{path}.tmp{os.getpid()}.png"
-    fig.savefig(tmp, dpi=100)
-    plt.close(fig)
-    os.replace(tmp, path)
+    try:
+        atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
+    finally:
+        plt.close(fig)
 
 
 def train(cfg: TrainConfig, out_dir: str | os.PathLike, resume: bool = False, progress: bool = True) -> dict:
-    """Train (or resume) a run in ``out_dir``; returns the last log row (dict)."""
+    """Train (or resume) a run in ``out_dir``; returns the last log row (dict). The run
+    folder is locked for the duration (one writer); the identical command resumes."""
+    out_dir = os.fspath(out_dir)
+    if os.path.lexists(out_dir) and not os.path.isdir(out_dir):
+        raise DatasetError(f"{out_dir} exists and is not a folder")
+    existed = os.path.isdir(out_dir)
+    os.makedirs(out_dir, exist_ok=True)
+    try:
+        lock = FolderLock(out_dir, "training run").acquire()
+    except BaseException:
+        if not existed:
+            os.rmdir(out_dir)
+        raise
+    try:
+        return _train_locked(cfg, out_dir, resume, progress)
+    except BaseException:
+        if not existed and not os.path.exists(os.path.join(out_dir, CHECKPOINT)):
+            import shutil
+            shutil.rmtree(out_dir, ignore_errors=True)   # nothing was trained: leave no folder
+        raise
+    finally:
+        lock.release()
+
+
+def _same_run(saved: dict, cfg: TrainConfig) -> bool:
+    """True when ``saved`` (settings.json) holds the settings of ``cfg`` (the identical command)."""
+    now = json.loads(json.dumps(cfg.to_dict()))
+    return all(saved.get(k) == v for k, v in now.items())
+
+
+def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool) -> dict:
     from torch.utils.data import DataLoader
     from tqdm import tqdm
-
-    out_dir = os.fspath(out_dir)
-    os.makedirs(out_dir, exist_ok=True)
     ckpt_path = os.path.join(out_dir, CHECKPOINT)
     if os.path.exists(ckpt_path) and not resume:
-        raise DatasetError(f"{out_dir} already holds a run; add --resume to continue it or use a new --out")
+        try:
+            with open(os.path.join(out_dir, SETTINGS)) as f:
+                saved = json.load(f)
+        except (OSError, ValueError):
+            saved = {}
+        if not (isinstance(saved, dict) and _same_run(saved, cfg)):
+            raise DatasetError(f"{out_dir} already holds a run with other settings; add --resume to "
+                               "continue it with these settings or use a new --out")
+        resume = True   # the identical command: continue where it stopped
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
 
@@ -163,25 +245,26 @@ def train(cfg: TrainConfig, out_dir: str | os.PathLike, resume: bool = False, pr
     if len(train_set) == 0:
         raise DatasetError(f"{cfg.data_dir}: no records in split {cfg.train_split!r}")
 
-    model = LightNet(NetConfig(res=cfg.res, width=cfg.width))
+    state = _load_checkpoint(ckpt_path) if resume and os.path.exists(ckpt_path) else None
+    if state is not None:
+        _check_resume_compatible(state["settings"], cfg)
+    model = LightNet(net_config(cfg, state["settings"] if state is not None else None))
     optimiser = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     scheduler = torch.optim.lr_scheduler.ReduceLROnPlateau(optimiser, mode="min", factor=0.1,
                                                            patience=cfg.plateau_patience)
     start_epoch, rows, best = 0, [], math.inf
-    if resume and os.path.exists(ckpt_path):
+    if state is not None:
         try:
-            state = torch.load(ckpt_path, weights_only=True)
-        except (RuntimeError, OSError, EOFError, ValueError, KeyError, pickle.UnpicklingError) as exc:
-            raise DatasetError(f"{ckpt_path}: cannot read checkpoint ({str(exc).splitlines()[0][:100]})") from None
-        _check_resume_compatible(state["settings"], cfg)
-        model.load_state_dict(state["model"])
-        optimiser.load_state_dict(state["optimiser"])
-        scheduler.load_state_dict(state["scheduler"])
-        start_epoch, rows, best = int(state["epoch"]), list(state["history"]), float(state["best_val_loss"])
-        torch.set_rng_state(state["torch_rng"])
+            model.load_state_dict(state["model"])
+            optimiser.load_state_dict(state["optimiser"])
+            scheduler.load_state_dict(state["scheduler"])
+            start_epoch, rows, best = int(state["epoch"]), list(state["history"]), float(state["best_val_loss"])
+            torch.set_rng_state(state["torch_rng"])
+        except (RuntimeError, ValueError, TypeError, KeyError, AttributeError) as exc:
+            raise DatasetError(f"{ckpt_path}: checkpoint does not match this network "
+                               f"({str(exc).splitlines()[0][:100]}); delete it to start over") from None
     settings = cfg.to_dict() | {"out_dir": out_dir, "parameters": count_parameters(model)}
-    with open(os.path.join(out_dir, SETTINGS), "w") as f:
-        json.dump(settings, f, indent=1)
+    write_json(os.path.join(out_dir, SETTINGS), settings)
     if start_epoch >= cfg.epochs:
         if progress:
             print(f"{out_dir}: already trained for {start_epoch} epochs (asked {cfg.epochs})")
@@ -203,35 +286,47 @@ def train(cfg: TrainConfig, out_dir: str | os.PathLike, resume: bool = False, pr
         loader = DataLoader(train_set, batch_size=cfg.batch_size, num_workers=cfg.workers,
                             sampler=_epoch_order(len(train_set), cfg.seed, epoch), drop_last=False)
         model.train()
-        sums, seen, t0 = {"total": 0.0, "pan": 0.0, "tilt": 0.0, "colour": 0.0}, 0, time.perf_counter()
+        sums, seen, t0 = {"total": 0.0, "pan": 0.0, "tilt": 0.0, "colour": 0.0, "kappa_nll": 0.0}, 0, time.perf_counter()
         bar = tqdm(loader, desc=f"epoch {epoch + 1}/{cfg.epochs}", disable=not progress, leave=False,
                    dynamic_ncols=True)
-        for x, y, _ in bar:
-            parts = light_loss(model(x), y, cfg.loss_weights, parts=True)
+        for x, y, index in bar:
+            y_pred, kappa = model.forward_with_kappa(x, calibrated=False)
+            parts = light_loss(y_pred, y, cfg.loss_weights, parts=True, kappa=kappa,
+                               camera_tilt_deg=_camera_tilts(train_set, index) if kappa is not None else None)
             optimiser.zero_grad(set_to_none=True)
-            parts["total"].backward()
+            parts["objective"].backward()
             optimiser.step()
             for k in sums:
-                sums[k] += float(parts[k].detach()) * len(x)
+                if parts[k] is not None:
+                    sums[k] += float(parts[k].detach()) * len(x)
             seen += len(x)
             bar.set_postfix(loss=f"{sums['total'] / seen:.4f}")
         train_time = time.perf_counter() - t0
-        y_val = run_model(model, evaluation_set, cfg.batch_size * 4)
+        y_val, kappa_val = run_model(model, evaluation_set, cfg.batch_size * 4, with_kappa=True)
         with torch.no_grad():
             val_loss = float(light_loss(torch.from_numpy(y_val),
                                         torch.from_numpy(np.stack([evaluation_set.target(i) for i in
                                                                    range(len(evaluation_set))])).float(),
                                         cfg.loss_weights))
         errs = errors_from_y(y_val, evaluation_set.truth())
+        calibration = {}
+        if kappa_val is not None:   # temperature scaling of kappa on val (the model stores T)
+            raw = kappa_val * float(model.kappa_temperature)
+            temperature = fit_temperature(raw, errs["direction"])
+            model.kappa_temperature.fill_(temperature)
+            summary = uncertainty_summary(raw / temperature, errs["direction"])
+            calibration = {"train_kappa_nll": sums["kappa_nll"] / seen, "val_kappa_nll": summary["nll_mean"],
+                           "val_cone90_cover": summary["cone90_coverage"], "kappa_temperature": temperature}
         scheduler.step(val_loss)
         row = {"epoch": epoch + 1, "lr": optimiser.param_groups[0]["lr"], "n_train": seen,
                "n_val": len(evaluation_set), "train_loss": sums["total"] / seen, "train_pan": sums["pan"] / seen,
                "train_tilt": sums["tilt"] / seen, "train_colour_rad": sums["colour"] / seen, "val_loss": val_loss,
                **{f"val_{m}_deg": float(np.mean(e)) for m, e in errs.items()},
-               "epoch_time_s": time.perf_counter() - t0, "train_img_per_s": seen / train_time}
+               "epoch_time_s": time.perf_counter() - t0, "train_img_per_s": seen / train_time, **calibration}
         rows.append(row)
         info = {"epoch": epoch + 1, "val_loss": val_loss, "data_dir": os.path.abspath(cfg.data_dir),
-                "n_train": seen, "settings": cfg.to_dict()}
+                "n_train": seen, "settings": cfg.to_dict(),
+                **({"kappa_temperature": calibration["kappa_temperature"]} if calibration else {})}
         save_model(os.path.join(out_dir, "last.safetensors"), model, info)
         if val_loss < best:
             best = val_loss
@@ -246,5 +341,7 @@ def train(cfg: TrainConfig, out_dir: str | os.PathLike, resume: bool = False, pr
             tqdm.write(f"epoch {epoch + 1}/{cfg.epochs}: loss {row['train_loss']:.4f} val {val_loss:.4f} | "
                        f"val mean deg: direction {row['val_direction_deg']:.2f} pan {row['val_pan_deg']:.2f} "
                        f"tilt {row['val_tilt_deg']:.2f} colour {row['val_colour_deg']:.2f} | "
-                       f"lr {row['lr']:.1e} | {seen} img, {row['train_img_per_s']:.1f} img/s")
+                       + (f"90% cone covers {100 * row['val_cone90_cover']:.0f}% (T {row['kappa_temperature']:.2f}) | "
+                          if calibration else "")
+                       + f"lr {row['lr']:.1e} | {seen} img, {row['train_img_per_s']:.1f} img/s")
     return rows[-1]

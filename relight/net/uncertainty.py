@@ -135,6 +135,10 @@ def spearman(a, b) -> float:
     return float(spearmanr(a, b).statistic)
 
 
+def _none_if_nan(v: float):
+    return None if v != v else v
+
+
 def uncertainty_summary(kappa, angle_deg, tilt_gt_deg=None, levels=RELIABILITY_LEVELS,
                         tilt_pred_deg=None) -> dict:
     """Calibration figures of calibrated ``kappa`` against the direction errors
@@ -142,7 +146,8 @@ def uncertainty_summary(kappa, angle_deg, tilt_gt_deg=None, levels=RELIABILITY_L
     :func:`pan_halfwidth_deg`, and the fraction of cones holding the zenith).
 
     Returns ``{"n", "nll_mean", "cone90_coverage", "cone90_mean_deg", "cone90_median_deg",
-    "spearman_cone90_error", "reliability": {"expected": [...], "observed": [...]},
+    "spearman_cone90_error" (None when undefined: fewer than 3 images or a constant
+    input), "reliability": {"expected": [...], "observed": [...]},
     "cone90_by_tilt_level": {L1: {"n", "cone90_mean_deg", "coverage"}, ...}}``.
     """
     k = np.asarray(kappa, dtype=np.float64)
@@ -154,7 +159,7 @@ def uncertainty_summary(kappa, angle_deg, tilt_gt_deg=None, levels=RELIABILITY_L
            "cone90_coverage": float(np.mean(a <= cone)) if a.size else float("nan"),
            "cone90_mean_deg": float(np.mean(cone)) if a.size else float("nan"),
            "cone90_median_deg": float(np.median(cone)) if a.size else float("nan"),
-           "spearman_cone90_error": spearman(cone, a),
+           "spearman_cone90_error": _none_if_nan(spearman(cone, a)),
            "reliability": {"expected": [float(q) for q in levels], "observed": observed}}
     if tilt_gt_deg is not None:
         lev = metrics.tilt_level(tilt_gt_deg)
@@ -179,7 +184,8 @@ def format_summary(s: dict) -> str:
     lines = ["**Direction uncertainty (calibrated vMF kappa)**", "",
              f"- 90% cone coverage: {100 * s['cone90_coverage']:.1f}% of {s['n']} true directions "
              f"(cone radius mean {s['cone90_mean_deg']:.2f}, median {s['cone90_median_deg']:.2f} deg)",
-             f"- Spearman rank correlation, cone radius vs direction error: {s['spearman_cone90_error']:.3f}",
+             "- Spearman rank correlation, cone radius vs direction error: "
+             + ("-" if s["spearman_cone90_error"] is None else f"{s['spearman_cone90_error']:.3f}"),
              f"- mean vMF negative log-likelihood: {s['nll_mean']:.3f} nats", "",
              "| Expected coverage | " + " | ".join(f"{q:.2f}" for q in s["reliability"]["expected"]) + " |",
              "|---|" + "---:|" * len(s["reliability"]["expected"]),
