@@ -4,20 +4,20 @@ from __future__ import annotations
 import os
 import sys
 
-from relight.commands.argtypes import finite_float, positive_int, rgb
+from relight.commands import argtypes as at
 
 
 def add_commands(sub) -> None:
     g = sub.add_parser("generate", help="render a SID2-style synthetic dataset (resumable)",
                        description="Render COUNT images of random scenes like the paper's SID2 "
                                    "into OUT. Re-running the same command resumes.")
-    g.add_argument("--count", type=int, default=16, help="total number of images (default 16)")
+    g.add_argument("--count", type=at.count, default=16, help="total number of images (default 16)")
     g.add_argument("--out", required=True, help="dataset folder")
-    g.add_argument("--seed", type=int, default=0, help="dataset seed (default 0)")
-    g.add_argument("--res", type=positive_int, default=None, help="image size in pixels (default 128)")
-    g.add_argument("--spp", type=positive_int, default=None, help="samples per pixel (default 64)")
-    g.add_argument("--max-depth", type=positive_int, default=None, help="path depth (default 4)")
-    g.add_argument("--workers", type=positive_int, default=1, help="parallel render processes (default 1)")
+    g.add_argument("--seed", type=at.seed, default=0, help="dataset seed (default 0)")
+    g.add_argument("--res", type=at.resolution, default=None, help="image size in pixels (default 128)")
+    g.add_argument("--spp", type=at.spp, default=None, help="samples per pixel (default 64)")
+    g.add_argument("--max-depth", type=at.max_depth, default=None, help="path depth (default 4)")
+    g.add_argument("--workers", type=at.workers, default=1, help="parallel render processes (default 1)")
     g.add_argument("--config", default=None, help="JSON file of generator settings")
     g.add_argument("--mesh-dir", default=None, help="folder of your own .obj/.ply meshes (z up)")
     g.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -27,27 +27,27 @@ def add_commands(sub) -> None:
                        description="Render SCENE (a relight.scene/v1 file) to OUT (.png or .exr).")
     r.add_argument("scene", help="scene file (JSON)")
     r.add_argument("--out", required=True, help="output image (.png 8-bit sRGB or .exr linear)")
-    r.add_argument("--light-pan", type=finite_float, default=None,
+    r.add_argument("--light-pan", type=at.light_pan, default=None,
                    help="light pan relative to the camera, degrees (0 front, 90 right)")
-    r.add_argument("--light-tilt", type=finite_float, default=None, help="light tilt (elevation), degrees")
-    r.add_argument("--rgb", type=rgb, default=None, help="light colour R,G,B (linear; normalised)")
-    r.add_argument("--spp", type=positive_int, default=None, help="override samples per pixel")
+    r.add_argument("--light-tilt", type=at.light_tilt, default=None, help="light tilt (elevation), degrees")
+    r.add_argument("--rgb", type=at.bounded_rgb, default=None, help="light colour R,G,B (linear; normalised)")
+    r.add_argument("--spp", type=at.spp, default=None, help="override samples per pixel")
     r.set_defaults(func=cmd_render)
 
 
 def cmd_generate(args) -> int:
     from relight.dataset import generate
+    from relight.fileio import check_outputs
     from relight.scene.sampling import GeneratorConfig
     overrides = dict(res=args.res, spp=args.spp, max_depth=args.max_depth,
                      mesh_dir=os.path.abspath(args.mesh_dir) if args.mesh_dir else None)
-    if args.count < 0:
-        raise ValueError_("--count must be >= 0")
     if args.config:
         cfg = GeneratorConfig.from_file(args.config, **overrides)
     else:
         cfg = GeneratorConfig(**{k: v for k, v in overrides.items() if v is not None})
+    check_outputs([args.out], [args.config, args.mesh_dir])
     stats = generate(args.out, args.count, seed=args.seed, cfg=cfg, workers=args.workers,
-                     progress=not args.quiet)
+                     progress=not args.quiet, threads=args.threads)
     msg = f"{args.out}: {stats.written} images written, {stats.skipped} already there"
     if stats.written:
         msg += f" ({stats.images_per_s:.2f} img/s, total/render time {stats.overhead_ratio:.2f})"
@@ -64,17 +64,20 @@ def ValueError_(msg):  # noqa: N802 - small helper raising the CLI's config erro
 def cmd_render(args) -> int:
     import dataclasses
 
+    from relight.fileio import check_file_target, check_outputs
     from relight.render import ImageError, render_spec, write_exr, write_png
     from relight.scene.spec import load_scene
     ext = os.path.splitext(args.out)[1].lower()
     if ext not in (".png", ".exr"):
         raise ImageError(f"--out must end in .png or .exr, got {args.out!r}")
+    check_outputs([args.out], [args.scene])
+    check_file_target(args.out)
     spec = load_scene(args.scene)
     spec = spec.with_light(args.light_pan, args.light_tilt, args.rgb)
     if args.spp:
         spec = dataclasses.replace(spec, render=dataclasses.replace(spec.render, spp=args.spp))
     image = render_spec(spec)
-    (write_exr if ext == ".exr" else write_png)(args.out, image)
+    (write_exr if ext == ".exr" else write_png)(args.out, image, inputs=[args.scene])
     print(f"{args.out}: {spec.render.res}x{spec.render.res}, light pan_rel {spec.pan_rel_deg:.1f} "
           f"tilt {spec.light.tilt_deg:.1f} deg", file=sys.stdout)
     return 0

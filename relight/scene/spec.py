@@ -257,11 +257,8 @@ class SceneSpec:
 
     def save(self, path: str | os.PathLike) -> None:
         """Write atomically (temporary file, then rename)."""
-        path = os.fspath(path)
-        tmp = f"{path}.tmp{os.getpid()}"
-        with open(tmp, "w") as f:
-            f.write(self.to_json())
-        os.replace(tmp, path)
+        from relight.fileio import write_text
+        write_text(os.fspath(path), self.to_json())
 
 
 def load_scene(path: str | os.PathLike) -> SceneSpec:
