@@ -9,10 +9,11 @@ fitted outline. A chrome sphere's rim reflects what lies beside it, so parts of 
 are faint; the robust fit and the strength threshold leave those out.
 
 Detection: OpenCV's Hough transform proposes circles; each is refined as above and scored
-by the share of its outline that has an edge (``edge_support``) and by how well a smooth
-diffuse model (second-order spherical harmonics of the normal, which holds any Lambertian
-sphere to a few percent) explains its pixels: a diffuse sphere fits closely, a mirror
-sphere does not and has a highlight many times brighter than its median.
+by the share of its outline that has an edge (``edge_support``); a mirror sphere shows a
+compact highlight many times brighter than its median, a diffuse sphere none, and its
+pixels fit a diffuse shading model (second-order spherical harmonics of the normal, which
+hold any Lambertian sphere to a few percent, or one light plus ambient, which follows a
+hard terminator).
 """
 from __future__ import annotations
 
@@ -38,10 +39,12 @@ MIN_EDGE_SUPPORT = 0.2         # share of the outline where it is the strongest 
 MIN_RADIUS_FRACTION = 0.02     # detection radii, as fractions of the image's shorter side
 MAX_RADIUS_FRACTION = 0.45
 MAX_CANDIDATES = 30
-CHROME_MIN_CONTRAST = 4.0      # chrome: brightest / median sphere pixel at least this
-CHROME_MIN_RESIDUAL = 0.45     # chrome: the smooth diffuse model misses by at least 45% rms
-DIFFUSE_MAX_RESIDUAL = 0.35    # diffuse: the smooth model fits within 35% rms (a hard
-                               # terminator under one small light is what it misses)
+CHROME_MIN_CONTRAST = 4.0      # chrome: brightest / median sphere pixel at least this,
+CHROME_MIN_BLOB_PX = 6         # in a highlight of at least 6 pixels (not a hot pixel)
+CHROME_MAX_BLOB_FRACTION = 0.05  # covering at most 5% of the sphere (not a lit side)
+CHROME_MIN_EXCESS = 0.3        # and largely above what one light on a diffuse sphere gives
+DIFFUSE_MAX_RESIDUAL = 0.3     # diffuse: a shading model fits within 30% rms
+TRIM_FRACTION = 0.01           # ... leaving out the worst 1% of pixels (glints, hot pixels)
 
 
 def load_image(path: str, linear: bool = False) -> tuple[np.ndarray, float | None, str]:
@@ -167,7 +170,7 @@ def refine_sphere(image: np.ndarray, camera: Camera, guess: Sphere, smoothed: np
             if keep.sum() < 0.2 * EDGE_ANGLES or keep.all():
                 break
             x, y = x[keep], y[keep]
-            sphere = fit_sphere(camera, x, y)
+            sphere = fit_sphere(camera, x, y, robust=False)     # outliers are gone
     # support: where the strongest edge in a wide band is the fitted outline itself (a
     # narrow band would find some edge near any circle drawn on a textured image)
     wide = max(4.0, SUPPORT_BAND_FRACTION * r)
@@ -188,8 +191,9 @@ def _edge_support(camera: Camera, sphere: Sphere, x, y) -> float:
 
 def sphere_features(image: np.ndarray, camera: Camera, sphere: Sphere) -> dict:
     """Figures telling a chrome from a diffuse sphere: ``contrast`` (99.9th percentile over
-    median luminance of the sphere's pixels) and ``residual`` (rms misfit of a second-order
-    spherical-harmonic shading model, over the mean luminance)."""
+    median luminance of the sphere's pixels) and ``residual`` (rms misfit, over the mean
+    luminance, of the better of two diffuse shading models: second-order spherical
+    harmonics of the normal, and one light plus ambient)."""
     (x0, y0, x1, y1), usable, s = sphere_pixels(camera, sphere, rim_exclude_px=1.5)
     usable &= s["cos_view"] >= 0.45
     if usable.sum() < 30:
@@ -200,9 +204,58 @@ def sphere_features(image: np.ndarray, camera: Camera, sphere: Sphere) -> dict:
     design = np.stack([np.ones_like(x), x, y, z, x * y, x * z, y * z, x * x - y * y, 3 * z * z - 1], 1)
     coef, *_ = np.linalg.lstsq(design, lum, rcond=None)
     mean = float(lum.mean())
-    resid = float(np.sqrt(np.mean((lum - design @ coef) ** 2)) / max(mean, 1e-9))
+    resid = _trimmed_rms(lum - design @ coef) / max(mean, 1e-9)
+    lambert_rms, lambert = _lambert_fit(n, lum)
+    resid = min(resid, lambert_rms / max(mean, 1e-9))
     contrast = float(np.percentile(lum, 99.9) / max(np.median(lum), 1e-6))
-    return {"contrast": contrast, "residual": resid, "mean": mean}
+    # the largest connected region of pixels at least half the brightest, and how much of
+    # it the one-light diffuse model leaves unexplained (a highlight: most; a lit crescent: little)
+    crop_lum = np.zeros(usable.shape)
+    crop_lum[usable] = lum
+    labels, count = ndimage.label(usable & (crop_lum >= 0.5 * lum.max()), np.ones((3, 3)))
+    blob, excess = 0, 0.0
+    if count:
+        sizes = np.bincount(labels.ravel())[1:]
+        blob = int(sizes.max())
+        in_blob = (labels == 1 + int(np.argmax(sizes)))[usable]
+        excess = float(np.sum(lum[in_blob] - lambert[in_blob]) / max(np.sum(lum[in_blob]), 1e-12))
+    return {"contrast": contrast, "residual": resid, "mean": mean, "blob_pixels": blob,
+            "blob_fraction": blob / float(usable.sum()), "blob_excess": excess}
+
+
+def _trimmed_rms(r: np.ndarray) -> float:
+    """RMS of residuals without the largest :data:`TRIM_FRACTION` (glints, hot pixels)."""
+    a = np.sort(np.abs(r))
+    return float(np.sqrt(np.mean(a[:max(1, int(len(a) * (1.0 - TRIM_FRACTION)))] ** 2)))
+
+
+def _lambert_fit(normals: np.ndarray, lum: np.ndarray, samples: int = 1500) -> tuple[float, np.ndarray]:
+    """Fit ``a + b max(0, n . l)`` (one distant light plus ambient, the light direction
+    free) to a sphere's pixels; returns the trimmed rms misfit and the model at every
+    pixel. Unlike a smooth expansion it follows a hard terminator, so a back-lit diffuse
+    sphere (a thin lit crescent) fits too."""
+    from scipy import optimize
+    step = max(1, len(lum) // samples)
+    n, y = normals[::step], lum[::step]
+
+    def model(p, nn):
+        l = np.array([math.cos(p[1]) * math.cos(p[0]), math.sin(p[1]), math.cos(p[1]) * math.sin(p[0])])
+        return np.stack([np.ones(len(nn)), np.maximum(nn @ l, 0.0)], 1)
+
+    def resid(p):
+        a = model(p, n)
+        coef, *_ = np.linalg.lstsq(a, y, rcond=None)
+        return a @ coef - y
+
+    best, best_p = np.inf, None
+    for start in ((0, 0, 1), (1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0.5, -1)):
+        l0 = np.asarray(start, float) / np.linalg.norm(start)
+        r = optimize.least_squares(resid, [math.atan2(l0[2], l0[0]), math.asin(l0[1])], max_nfev=60)
+        rms = _trimmed_rms(r.fun)
+        if rms < best:
+            best, best_p = rms, r.x
+    coef, *_ = np.linalg.lstsq(model(best_p, n), y, rcond=None)
+    return best, model(best_p, normals) @ coef
 
 
 def hough_circles(image: np.ndarray) -> list[tuple[float, float, float]]:
@@ -246,8 +299,13 @@ def find_spheres(image: np.ndarray, camera: Camera) -> list[dict]:
             continue
         refined.append((cx, cy, r))
         try:
-            sphere, support = refine_sphere(image, camera, sphere_from_circle(camera, cx, cy, r), smoothed,
-                                            first_band_px=max(3.0, 0.12 * r))
+            guess = sphere_from_circle(camera, cx, cy, r)
+            # cheap screen: is the strongest nearby edge on this circle often enough?
+            x, y, _ = edge_points(smoothed, camera, guess, max(4.0, SUPPORT_BAND_FRACTION * r), prior=False)
+            near = np.abs(_outline_distance(camera, guess, x, y)) <= max(2.0, 0.05 * r)
+            if near.sum() < MIN_EDGE_SUPPORT * EDGE_ANGLES:
+                continue
+            sphere, support = refine_sphere(image, camera, guess, smoothed, first_band_px=max(3.0, 0.12 * r))
         except ProbeError:
             continue
         if support < MIN_EDGE_SUPPORT:
@@ -261,14 +319,24 @@ def find_spheres(image: np.ndarray, camera: Camera) -> list[dict]:
         out = [c for c in out if not any(c is d for d in same)]
         f = sphere_features(image, camera, sphere)
         out.append({"sphere": sphere, "circle": circle, "edge_support": support, **f,
-                    "chrome": f["contrast"] >= CHROME_MIN_CONTRAST and f["residual"] >= CHROME_MIN_RESIDUAL,
-                    "diffuse": f["residual"] <= DIFFUSE_MAX_RESIDUAL and f["mean"] > 0.005})
+                    "chrome": is_chrome(f), "diffuse": is_diffuse(f)})
     # a circle inside a better supported one is a highlight or a reflection on that sphere
     out = [c for c in out if not any(
         o is not c and math.hypot(c["circle"][0] - o["circle"][0], c["circle"][1] - o["circle"][1])
         + c["circle"][2] < o["circle"][2] * 1.02 and o["edge_support"] >= c["edge_support"] for o in out)]
     out.sort(key=lambda c: -c["edge_support"])
     return out
+
+
+def is_chrome(f: dict) -> bool:
+    """A chrome sphere shows a compact highlight much brighter than the rest of it."""
+    return (f["contrast"] >= CHROME_MIN_CONTRAST and f["blob_pixels"] >= CHROME_MIN_BLOB_PX
+            and f["blob_fraction"] <= CHROME_MAX_BLOB_FRACTION and f["blob_excess"] >= CHROME_MIN_EXCESS)
+
+
+def is_diffuse(f: dict) -> bool:
+    """A diffuse sphere's shading fits a smooth or one-light model, with no highlight."""
+    return f["residual"] <= DIFFUSE_MAX_RESIDUAL and f["mean"] > 0.005 and not is_chrome(f)
 
 
 def pick_sphere(candidates: list[dict], kind: str, exclude: list[tuple] = ()) -> dict:

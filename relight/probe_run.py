@@ -61,10 +61,12 @@ class ProbeResult:
 
 
 def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mask_path: str | None = None,
-                  refine: bool = True, exclude=()) -> tuple[Sphere, np.ndarray | None, str]:
+                  refine: bool = True, exclude=(), candidates: list | None = None
+                  ) -> tuple[Sphere, np.ndarray | None, str]:
     """The ``kind`` sphere in ``image`` from a mask, a circle (refined on the image's
-    edges unless ``refine`` is off or the edges disagree), or automatic detection.
-    Returns ``(sphere, mask or None, how)``."""
+    edges unless ``refine`` is off or the edges disagree), or automatic detection
+    (``candidates``: those of :func:`relight.probe_detect.find_spheres`, if already found;
+    the list is filled in place). Returns ``(sphere, mask or None, how)``."""
     if mask_path is not None:
         mask = detect.load_mask(mask_path)
         return geom.sphere_from_mask(camera, mask), mask, "mask"
@@ -82,7 +84,10 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
         if support < detect.MIN_EDGE_SUPPORT or moved > 0.15 * r0:
             return guess, None, "circle (edges disagree; not refined)"
         return sphere, None, "circle refined on edges"
-    candidates = detect.find_spheres(image, camera)
+    if candidates is None:
+        candidates = []
+    if not candidates:
+        candidates.extend(detect.find_spheres(image, camera))
     found = detect.pick_sphere(candidates, kind, exclude)
     return found["sphere"], None, "detected"
 
@@ -98,10 +103,12 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
     result = ProbeResult(entry=entry, camera=None)
     direction, rgb, methods = None, np.ones(3) / math.sqrt(3.0), []
     chrome_circle = None
+    candidates: list = []      # spheres found automatically, shared when both are in one image
     if cfg.chrome:
         image, clip, how = detect.load_image(cfg.chrome, cfg.linear)
         camera = cfg.camera(image.shape[1], image.shape[0])
-        sphere, mask, found = locate_sphere(image, camera, "chrome", cfg.chrome_circle, cfg.chrome_mask, cfg.refine)
+        sphere, mask, found = locate_sphere(image, camera, "chrome", cfg.chrome_circle, cfg.chrome_mask, cfg.refine,
+                                            candidates=candidates)
         if np.asarray(image).max() <= 0:
             raise ProbeError(f"{cfg.chrome} is black")
         hl = geom.locate_highlight(image, camera, sphere, mask, clip)
@@ -122,7 +129,7 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
         camera = cfg.camera(image.shape[1], image.shape[0])
         exclude = [chrome_circle] if same and chrome_circle is not None else []
         sphere, mask, found = locate_sphere(image, camera, "diffuse", cfg.diffuse_circle, cfg.diffuse_mask,
-                                            cfg.refine, exclude)
+                                            cfg.refine, exclude, candidates if same else None)
         d_dir, rgb, info = geom.diffuse_light(image, camera, sphere, mask)
         entry["diffuse_circle"] = [round(v, 3) for v in detect.outline_circle(camera, sphere)]
         entry["diffuse_found_by"] = found

@@ -144,11 +144,13 @@ def test_circle_detection_on_a_render(small_render):
         assert found["circle"][2] == pytest.approx(truth[2], abs=DETECT_CIRCLE_TOL_PX)
 
 
-def test_cli_automatic_with_qa_overlay(small_render, tmp_path, capsys):
+def test_cli_circles_given_with_qa_overlay(small_render, tmp_path):
     scene, path = small_render
     out, qa = tmp_path / "p.json", tmp_path / "qa.png"
-    assert main(["probe", "--chrome", path, "--diffuse", path, "--fov", str(scene.fov_deg),
-                 "--camera-tilt", "10", "--out", str(out), "--qa", str(qa)]) == 0
+    circles = [",".join(f"{v:.2f}" for v in scene.circle(which)) for which in ("chrome", "gray")]
+    assert main(["probe", "--chrome", path, "--chrome-circle", circles[0], "--diffuse", path,
+                 "--diffuse-circle", circles[1], "--fov", str(scene.fov_deg), "--camera-tilt", "10",
+                 "--out", str(out), "--qa", str(qa)]) == 0
     entry = json.loads(out.read_text())["predictions"][0]
     assert _angle(entry["to_light_camera"], scene.to_light) < RENDER_DIR_TOL_DEG
     assert np.hypot(*(np.asarray(entry["chrome_circle"][:2]) - scene.circle("chrome")[:2])) < DETECT_CIRCLE_TOL_PX
@@ -213,3 +215,14 @@ def test_bad_inputs_give_one_line_and_exit_2(tmp_path, capsys):
         assert _run(["probe", *args, "--out", str(out)]) == 2, args
         assert _one_error_line(capsys), args
         assert not out.exists()
+
+
+@pytest.mark.slow
+def test_cli_automatic(small_render, tmp_path):
+    scene, path = small_render
+    out = tmp_path / "p.json"
+    assert main(["probe", "--chrome", path, "--diffuse", path, "--fov", str(scene.fov_deg), "--out", str(out)]) == 0
+    entry = json.loads(out.read_text())["predictions"][0]
+    assert entry["chrome_found_by"] == entry["diffuse_found_by"] == "detected"
+    assert _angle(entry["to_light_camera"], scene.to_light) < RENDER_DIR_TOL_DEG
+    assert np.hypot(*(np.asarray(entry["diffuse_circle"][:2]) - scene.circle("gray")[:2])) < DETECT_CIRCLE_TOL_PX
