@@ -23,6 +23,7 @@ A run that fails before finishing any image leaves the folder as it was.
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import multiprocessing as mp
@@ -37,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from relight import frames
-from relight.fileio import FolderLock, remove_temps, write_bytes, write_json
+from relight.fileio import LOCK_NAME, FolderLock, remove_temps, write_bytes, write_json
 from relight.scene.sampling import GeneratorConfig, sample_scene, split_of
 from relight.scene.spec import SceneSpec
 
@@ -319,6 +320,7 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
     if os.path.lexists(out) and not os.path.isdir(out):
         raise DatasetError(f"{out} exists and is not a folder")
     existed = os.path.isdir(out)
+    before = set(os.listdir(out)) if existed else set()
     os.makedirs(out, exist_ok=True)
     card_path = os.path.join(out, CARD)
     try:
@@ -339,6 +341,14 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
                 write_bytes(card_path, old_card)
             elif os.path.isfile(card_path) and not _has_records(out):
                 os.remove(card_path)
+            if existed:   # and what this run added: empty folders, the lock file
+                for name in set(os.listdir(out)) - before:
+                    path = os.path.join(out, name)
+                    with contextlib.suppress(OSError):
+                        if os.path.isdir(path):
+                            os.rmdir(path)
+                        elif name == LOCK_NAME or (name == MANIFEST and os.path.getsize(path) == 0):
+                            os.remove(path)
         raise
     finally:
         lock.release()
@@ -376,6 +386,10 @@ def _generate_locked(out: str, count: int, seed: int, cfg: GeneratorConfig, work
     cores = os.cpu_count() or 1
     workers = min(workers, len(todo))
     threads = threads or max(1, cores // workers)
+    if workers == 1 or cfg.mesh_dir:
+        from relight import backend
+        backend.init(threads=threads if workers == 1 else 1)
+        _check_meshes(cfg)   # a bad mesh fails here, before the manifest is touched
     bar = tqdm(total=len(todo), unit="img", disable=not progress, desc="generate", smoothing=0.1)
     t_start = time.perf_counter()
     with open(manifest_path, "ab") as manifest:
@@ -388,15 +402,8 @@ def _generate_locked(out: str, count: int, seed: int, cfg: GeneratorConfig, work
             bar.update(1)
 
         if workers == 1:
-            from relight import backend
-            backend.init(threads=threads)
-            _check_meshes(cfg)
             _pipeline(out, cfg, seed, todo, append)
         else:
-            if cfg.mesh_dir:
-                from relight import backend
-                backend.init(threads=1)
-                _check_meshes(cfg)
             ctx = mp.get_context("spawn")
             queue = ctx.Queue()
             watch, keep_alive = ctx.Pipe(duplex=False)   # workers watch it; closes when we die

@@ -286,6 +286,12 @@ def test_failed_generate_leaves_nothing_and_does_not_block(world, tmp_path, capf
                         "--out", out, "--quiet"], capfd)
     assert_refused(code, err, "junk.obj")
     assert not out.exists()   # nothing was there before, nothing is left
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    code, _, err = cli(["generate", "--count", "4", "--res", RES, "--spp", SPP, "--seed", "3", "--mesh-dir", meshes,
+                        "--out", empty, "--quiet"], capfd)
+    assert_refused(code, err, "junk.obj")
+    assert os.listdir(empty) == []   # an existing folder is left as it was
     code, _, err = cli(["generate", "--count", "1", "--res", RES, "--spp", SPP, "--out", out, "--quiet"], capfd)
     assert code == 0, err     # the corrected command is not blocked by a leftover card
     assert manifest_ids(out) == ["000000"]
