@@ -36,6 +36,7 @@ SPP = 2
 KILL_SEED = 12           # random kill moments, reproducible
 WORKER_EXIT_S = 20.0     # orphaned workers must be gone by then
 PROCESS_TIMEOUT_S = 300
+TEMP_HINT = ".relight-tmp-"   # the mark of an internal temporary file name
 
 
 # --- helpers ----------------------------------------------------------------------------
@@ -60,8 +61,6 @@ def assert_refused(code, err, contains: str | None = None):
     if contains:
         assert contains in lines[0], err
 
-
-TEMP_HINT = ".relight-tmp-"
 
 
 def tree(root) -> dict:
@@ -240,7 +239,8 @@ WRONG_OUT = [
 ]
 
 
-@pytest.mark.parametrize("argv,contains", WRONG_OUT, ids=lambda a: " ".join(a[:1] + a[-2:]) if isinstance(a, list) else "")
+@pytest.mark.parametrize("argv,contains", WRONG_OUT,
+                         ids=lambda a: " ".join(a[:1] + a[-2:]) if isinstance(a, list) else "")
 def test_wrong_kind_of_output_or_input_is_refused(argv, contains, world, tmp_path, capfd):
     refused_unchanged(argv, world, tmp_path, capfd, contains)
     assert not temps_under(tmp_path) and not os.path.exists(tmp_path / "p.json")
@@ -484,7 +484,8 @@ PNG_CASES = [
     ("grey8", 8, 0, bytes([64]) * W, None, (64 / 255,) * 3, 1e-6),
     ("grey16", 16, 0, b"\x40\x00" * W, None, (0x4000 / 65535,) * 3, 1e-6),   # was read almost white
     ("rgb8", 8, 2, bytes([200, 100, 50]) * W, None, (200 / 255, 100 / 255, 50 / 255), 1e-6),
-    ("rgb16", 16, 2, b"\xc0\x00\x40\x00\x10\x00" * W, None, (0xC000 / 65535, 0x4000 / 65535, 0x1000 / 65535), 1e-6),
+    ("rgb16", 16, 2, b"\xc0\x00\x40\x00\x10\x00" * W, None, (0xC000 / 65535, 0x4000 / 65535, 0x1000 / 65535),
+     1e-6),
     ("pal1", 1, 3, b"\xff", PAL, (40 / 255, 200 / 255, 90 / 255), 1e-6),
     ("pal2", 2, 3, b"\x55" * 2, PAL, (40 / 255, 200 / 255, 90 / 255), 1e-6),
     ("pal4", 4, 3, b"\x11" * 4, PAL, (40 / 255, 200 / 255, 90 / 255), 1e-6),
@@ -492,7 +493,8 @@ PNG_CASES = [
     ("greyalpha8", 8, 4, bytes([64, 128]) * W, None, (64 / 255,) * 3, 1e-6),
     ("greyalpha16", 16, 4, b"\x40\x00\x80\x00" * W, None, (0.25,) * 3, 1 / 255),
     ("rgba8", 8, 6, bytes([200, 100, 50, 7]) * W, None, (200 / 255, 100 / 255, 50 / 255), 1e-6),
-    ("rgba16", 16, 6, b"\xc0\x00\x40\x00\x10\x00\x00\x10" * W, None, (0xC000 / 65535, 0x4000 / 65535, 0x1000 / 65535), 1e-6),
+    ("rgba16", 16, 6, b"\xc0\x00\x40\x00\x10\x00\x00\x10" * W, None,
+     (0xC000 / 65535, 0x4000 / 65535, 0x1000 / 65535), 1e-6),
 ]
 
 
@@ -663,7 +665,8 @@ RANGE_BAD = {
     "--torch-threads": ["0"], "--loss-weights": ["0,0,0", "-1,1,1", "1,1"], "--width": ["0"],
     "--max-minutes": ["-1"], "--camera-tilt": ["90", "-90", "1e308"], "--limit": ["0", "-1"],
     "--max-columns": ["0"], "--max-iters": ["0"], "--time-budget": ["0", "-5"],
-    "--kappa-weight": ["-1"], "--fov": ["0", "180", "-1"], "--focal-px": ["0", "-1"], "--target-rmse": ["0", "-0.1", "2"],
+    "--kappa-weight": ["-1"], "--fov": ["0", "180", "-1"], "--focal-px": ["0", "-1"],
+    "--target-rmse": ["0", "-0.1", "2"],
 }
 
 
