@@ -108,6 +108,21 @@ def test_highlight_of_a_known_light_is_predicted_and_recovered(where, to_light):
     assert _angle(pg.locate_highlight(image, cam, from_mask).to_light, to_light) < HIGHLIGHT_DIR_TOL_DEG
 
 
+def test_broad_lobe_peak_is_found():
+    # a rough sphere or an extended source: an unclipped lobe 6 deg wide (in reflected
+    # directions) around the light, on a dim sky; its peak is the light's direction
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 90.0, 70.0, 14.0)
+    to_light = np.array([0.4, 0.5, 0.75]) / np.linalg.norm([0.4, 0.5, 0.75])
+    ys, xs = np.mgrid[0:H, 0:W] + 0.5
+    s = pg.surface(cam, sphere, xs, ys)
+    angle = np.degrees(np.arccos(np.clip(s["reflect"] @ to_light, -1, 1)))
+    image = np.where(s["hit"], 0.05 + 0.8 * np.exp(-0.5 * (angle / 6.0) ** 2), 0.02)
+    found = pg.locate_highlight(np.repeat(image[..., None], 3, -1), cam, sphere)
+    assert _angle(found.to_light, to_light) < HIGHLIGHT_DIR_TOL_DEG
+    assert not found.quality["clipped"]
+
+
 def test_brighter_clipped_blob_wins_over_a_hot_pixel():
     cam = pg.Camera.from_fov(W, H, FOV_DEG)
     sphere = _sphere_at(cam, 100.0, 75.0, 8.0)
@@ -155,6 +170,9 @@ def test_cli_circles_given_with_qa_overlay(small_render, tmp_path):
     assert _angle(entry["to_light_camera"], scene.to_light) < RENDER_DIR_TOL_DEG
     assert np.hypot(*(np.asarray(entry["chrome_circle"][:2]) - scene.circle("chrome")[:2])) < DETECT_CIRCLE_TOL_PX
     assert {"pan_deg", "tilt_deg", "rgb", "quality_deg", "diffuse_circle"} <= set(entry)
+    # the render's camera follows the conventions: its highlight is where the closed form puts it
+    predicted, _ = pg.predict_highlight(scene.camera, scene.chrome, scene.to_light)
+    assert np.hypot(*(np.asarray(entry["quality"]["highlight_px"]) - predicted)) < 2 * HIGHLIGHT_PX_TOL
     assert np.std(entry["rgb"]) < 0.02                    # a white light on a gray sphere
     from relight.probes import camera_to_pan_tilt
     assert (entry["pan_deg"], entry["tilt_deg"]) == pytest.approx(camera_to_pan_tilt(entry["to_light_camera"], 10))
