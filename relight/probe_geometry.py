@@ -401,9 +401,14 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
         grown = ndimage.binary_dilation(region, square, iterations=2) & usable
         ring = ndimage.binary_dilation(grown, square, iterations=2) & usable & ~grown & (labels == 0)
         background = float(np.median(crop[ring])) if ring.sum() >= 4 else floor
+    # ambiguity: how close another candidate comes, in brightness above the threshold
+    # times size (up to the chosen one's): a rival light 1, a dimmer window or a speck less
     index = np.arange(1, count + 1)
-    energies = np.asarray(ndimage.sum(crop - HIGHLIGHT_FRACTION * peak, labels, index))
-    others = energies[index != best] / max(float(energies[index == best][0]), 1e-12)
+    comp_peaks = np.asarray(ndimage.maximum(crop, labels, index))
+    comp_sizes = np.bincount(labels.ravel(), minlength=count + 1)[1:]
+    rivals = index != best
+    others = ((comp_peaks[rivals] - HIGHLIGHT_FRACTION * peak) / ((1.0 - HIGHLIGHT_FRACTION) * peak)
+              * np.minimum(comp_sizes[rivals] / max(int(comp_sizes[best - 1]), 1), 1.0))
     weights = np.clip(crop - background, 0.0, None) * grown
     ys, xs = np.nonzero(weights > 0)
     w = weights[ys, xs] * _solid_angle_weights(camera, sphere, xs + x0 + 0.5, ys + y0 + 0.5)

@@ -233,7 +233,7 @@ def write_qa(path: str, result: ProbeResult, title: str = "") -> None:
     panel[:right.shape[0], full.shape[1] + 4:] = right
     e = result.entry
     d = e["to_light_camera"]
-    if exposure > 1.0:
+    if exposure > 1.5:
         title = f"{title}  (shown {exposure:.0f}x brighter)"
     lines = [title, f"to_light_camera ({d[0]:+.3f}, {d[1]:+.3f}, {d[2]:+.3f})  pan {e['pan_deg']:.1f}  "
              f"tilt {e['tilt_deg']:.1f}  [{e['method']}; {e['projection']}]"]
