@@ -9,9 +9,11 @@ from relight.commands.argtypes import camera_tilt, positive_float
 def add_commands(sub) -> None:
     p = sub.add_parser("probe", help="light direction from a chrome sphere, colour from a diffuse sphere",
                        description="The paper's sphere procedure (Experiment 2): direction from the "
-                                   "chrome sphere's highlight (mirror reflection), colour (and a "
-                                   "shading-based direction) from the diffuse sphere. Writes a "
-                                   "relight.predictions/v1 file.")
+                                   "chrome sphere's highlight (each pixel's view ray reflected about "
+                                   "the sphere's normal; perspective with --fov/--focal-px), colour "
+                                   "(and a shading-based direction) from the diffuse sphere. Spheres "
+                                   "are found automatically unless a circle or mask is given. Writes "
+                                   "a relight.predictions/v1 file (and a QA overlay with --qa).")
     p.add_argument("--chrome", help="image with a chrome (mirror) sphere")
     p.add_argument("--chrome-circle", type=circle, help="CX,CY,R: the chrome sphere's outline in pixels "
                    "(x right, y down, origin top-left, pixel centres at +0.5); refined on the image")
