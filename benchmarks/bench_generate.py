@@ -124,7 +124,7 @@ def main() -> int:
         naive_dir = os.path.join(tmp, "naive")
         for sub in ("images", "exr", "scenes"):
             os.makedirs(os.path.join(naive_dir, sub))
-        _write_card(naive_dir, seed, cfg, args.n)
+        _write_card(naive_dir, seed, cfg, args.n, 0)
         t0 = time.perf_counter()
         naive_render_s = 0.0
         for i in range(args.n):

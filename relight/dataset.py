@@ -91,6 +91,7 @@ def record_for(spec: SceneSpec, split: str) -> dict:
         "y": [float(v) for v in y],
         "seed": spec.render.seed,
         "n_objects": len(spec.objects),
+        "colour_prior": spec.colour_prior,
     }
 
 

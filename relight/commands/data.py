@@ -5,6 +5,8 @@ import os
 import sys
 
 from relight.commands import argtypes as at
+from relight.scene.albedo import PRIORS
+from relight.scene.spec import SAMPLERS
 
 
 def add_commands(sub) -> None:
@@ -15,7 +17,15 @@ def add_commands(sub) -> None:
     g.add_argument("--out", required=True, help="dataset folder")
     g.add_argument("--seed", type=at.seed, default=0, help="dataset seed (default 0)")
     g.add_argument("--res", type=at.resolution, default=None, help="image size in pixels (default 128)")
-    g.add_argument("--spp", type=at.spp, default=None, help="samples per pixel (default 64)")
+    g.add_argument("--spp", type=at.spp, default=None,
+                   help="samples per pixel (default: the fewest that reach --target-rmse)")
+    g.add_argument("--target-rmse", type=at.relative_rmse, default=None,
+                   help="target relative RMSE of each render against a converged one "
+                        "(default 0.02: 16 spp with multijitter); ignored with --spp")
+    g.add_argument("--sampler", choices=SAMPLERS, default=None,
+                   help="Mitsuba sampler (default multijitter)")
+    g.add_argument("--colour-prior", choices=PRIORS, default=None,
+                   help="surface-colour prior of textures and objects (default hsv; see README)")
     g.add_argument("--max-depth", type=at.max_depth, default=None, help="path depth (default 4)")
     g.add_argument("--workers", type=at.workers, default=1, help="parallel render processes (default 1)")
     g.add_argument("--config", default=None, help="JSON file of generator settings")
@@ -39,7 +49,8 @@ def cmd_generate(args) -> int:
     from relight.dataset import generate
     from relight.fileio import check_outputs
     from relight.scene.sampling import GeneratorConfig
-    overrides = dict(res=args.res, spp=args.spp, max_depth=args.max_depth,
+    overrides = dict(res=args.res, spp=args.spp, max_depth=args.max_depth, sampler=args.sampler,
+                     target_rmse=args.target_rmse, colour_prior=args.colour_prior,
                      mesh_dir=os.path.abspath(args.mesh_dir) if args.mesh_dir else None)
     if args.config:
         cfg = GeneratorConfig.from_file(args.config, **overrides)

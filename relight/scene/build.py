@@ -27,7 +27,7 @@ import numpy as np
 
 from relight import backend, frames
 from relight.scene import bsdf as rough_bsdf
-from relight.scene import shapes, textures
+from relight.scene import noise, shapes, textures
 from relight.scene.spec import ObjectSpec, SceneFileError, SceneSpec
 
 N_OBJECT_SLOTS = 3          # the generator places 1-3 objects
@@ -243,7 +243,8 @@ class SceneTemplate:
     def render(self, spp: int, seed: int) -> np.ndarray:
         """Render the current state: ``(res, res, 3)`` float32 linear RGB."""
         mi = backend.mitsuba()
-        return np.array(mi.render(self.scene, spp=int(spp), seed=int(seed)), dtype=np.float32)
+        spp = noise.exact_spp(self.key.sampler, int(spp))
+        return np.array(mi.render(self.scene, spp=spp, seed=int(seed)), dtype=np.float32)
 
 
 def texture(params: dict, size: int) -> np.ndarray:

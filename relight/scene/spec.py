@@ -262,13 +262,22 @@ class SceneSpec:
 
 
 def load_scene(path: str | os.PathLike) -> SceneSpec:
-    """Read a scene file; :class:`SceneFileError` names the file on any problem."""
+    """Read a scene file; :class:`SceneFileError` names the file on any problem.
+
+    A relative ``mesh_path`` is taken relative to the scene file's folder, so a
+    scene and its meshes can be moved together (``scenes/meshes/``)."""
     try:
         with open(path) as f:
             text = f.read()
     except OSError as exc:
         raise SceneFileError(f"cannot read scene file {os.fspath(path)}: {exc.strerror}") from None
     try:
-        return SceneSpec.from_json(text)
+        spec = SceneSpec.from_json(text)
     except SceneFileError as exc:
         raise SceneFileError(f"{os.fspath(path)}: {exc}") from None
+    folder = os.path.dirname(os.path.abspath(os.fspath(path)))
+    if any(o.mesh_path and not os.path.isabs(o.mesh_path) for o in spec.objects):
+        spec = dataclasses.replace(spec, objects=tuple(
+            dataclasses.replace(o, mesh_path=os.path.join(folder, o.mesh_path))
+            if o.mesh_path and not os.path.isabs(o.mesh_path) else o for o in spec.objects))
+    return spec
