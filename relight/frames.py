@@ -38,14 +38,22 @@ PHOTO_CAMERA_TILT_DEG = 45.0  # assumed camera tilt of a photograph (the paper's
 
 
 def wrap360(angle_deg):
-    """Wrap degrees into [0, 360)."""
+    """Wrap degrees into [0, 360).
+
+    >>> float(wrap360(-90)), float(wrap360(360)), float(wrap360(725))
+    (270.0, 0.0, 5.0)
+    """
     a = np.mod(np.asarray(angle_deg, dtype=np.float64), 360.0)
     # np.mod(-1e-20, 360) returns 360.0 in floating point: fold it back to 0.
     return np.where(a >= 360.0, 0.0, a)
 
 
 def wrap180(angle_deg):
-    """Wrap degrees into [-180, 180)."""
+    """Wrap degrees into [-180, 180).
+
+    >>> float(wrap180(270)), float(wrap180(180)), float(wrap180(-190))
+    (-90.0, -180.0, 170.0)
+    """
     return wrap360(np.asarray(angle_deg, dtype=np.float64) + 180.0) - 180.0
 
 
@@ -59,6 +67,15 @@ def spherical_to_cartesian(r_m, pan_deg, tilt_deg) -> np.ndarray:
 
     Returns:
         Array of shape ``broadcast(...) + (3,)`` in metres.
+
+    Pan 90 points along +Y, tilt 90 straight up:
+
+    >>> (np.round(spherical_to_cartesian(2.0, 90.0, 0.0), 12) + 0.0).tolist()
+    [0.0, 2.0, 0.0]
+    >>> (np.round(spherical_to_cartesian(3.0, 45.0, 90.0), 12) + 0.0).tolist()
+    [0.0, 0.0, 3.0]
+    >>> spherical_to_cartesian([1.0, 2.0], 0.0, 0.0).shape
+    (2, 3)
     """
     pan_rad = np.radians(np.asarray(pan_deg, dtype=np.float64))
     tilt_rad = np.radians(np.asarray(tilt_deg, dtype=np.float64))
@@ -70,7 +87,13 @@ def spherical_to_cartesian(r_m, pan_deg, tilt_deg) -> np.ndarray:
 
 
 def direction(pan_deg, tilt_deg) -> np.ndarray:
-    """Unit vector toward (pan, tilt), world frame; shape ``(..., 3)``."""
+    """Unit vector toward (pan, tilt), world frame; shape ``(..., 3)``.
+
+    >>> (np.round(direction(90, 0), 12) + 0.0).tolist()
+    [0.0, 1.0, 0.0]
+    >>> (np.round(direction(180, 60), 12) + 0.0).tolist()   # (-cos 60, 0, sin 60)
+    [-0.5, 0.0, 0.866025403784]
+    """
     return spherical_to_cartesian(1.0, pan_deg, tilt_deg)
 
 
@@ -81,6 +104,12 @@ def tangent_basis(pan_deg: float, tilt_deg: float) -> tuple[np.ndarray, np.ndarr
     counter-clockwise seen from above), ``e_tilt`` toward increasing tilt (up, toward the
     zenith). ``d(direction)/d(pan_rad) = cos(tilt) e_pan`` and
     ``d(direction)/d(tilt_rad) = e_tilt``. Defined at the zenith too (pan picks the frame).
+
+    At (pan 0, tilt 0), i.e. on +X, increasing pan goes toward +Y and increasing tilt up:
+
+    >>> e_pan, e_tilt = tangent_basis(0.0, 0.0)
+    >>> (e_pan + 0.0).tolist(), (e_tilt + 0.0).tolist()
+    ([0.0, 1.0, 0.0], [0.0, 0.0, 1.0])
     """
     p, t = np.radians(float(pan_deg)), np.radians(float(tilt_deg))
     e_pan = np.array([-np.sin(p), np.cos(p), 0.0])
@@ -96,6 +125,10 @@ def cartesian_to_spherical(p) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
     Returns:
         ``(r_m, pan_deg in [0, 360), tilt_deg in [-90, 90])``. At the poles pan is 0.
+
+    >>> r, pan, tilt = cartesian_to_spherical([0.0, -2.0, 2.0])
+    >>> round(float(r), 9), float(pan), float(tilt)   # r = 2 sqrt(2)
+    (2.828427125, 270.0, 45.0)
     """
     p = np.asarray(p, dtype=np.float64)
     x, y, z = p[..., 0], p[..., 1], p[..., 2]
@@ -106,7 +139,11 @@ def cartesian_to_spherical(p) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def pan_rel_deg(pan_l_deg, pan_c_deg=0.0):
-    """Light pan relative to the camera, ``wrap360(pan_l - pan_c)`` in [0, 360)."""
+    """Light pan relative to the camera, ``wrap360(pan_l - pan_c)`` in [0, 360).
+
+    >>> float(pan_rel_deg(30.0, 300.0)), float(pan_rel_deg(90.0))
+    (90.0, 90.0)
+    """
     return wrap360(np.asarray(pan_l_deg, dtype=np.float64) - pan_c_deg)
 
 
@@ -121,6 +158,12 @@ def encode_y(pan_l_deg, tilt_l_deg, rgb, tilt_c_deg, pan_c_deg=0.0) -> np.ndarra
 
     Returns:
         ``(..., 7)`` float64.
+
+    A light 90 deg to the camera's right and 15 deg above its tilt of 45:
+    sin(-90) = -1, cos(-90) = 0, sin(-15), cos(-15), then the colour.
+
+    >>> (np.round(encode_y(90.0, 60.0, [1.0, 0.0, 0.0], tilt_c_deg=45.0), 6) + 0.0).tolist()
+    [-1.0, 0.0, -0.258819, 0.965926, 1.0, 0.0, 0.0]
     """
     dpan_rad = np.radians(np.asarray(pan_c_deg, dtype=np.float64) - pan_l_deg)
     dtilt_rad = np.radians(np.asarray(tilt_c_deg, dtype=np.float64) - tilt_l_deg)
@@ -163,6 +206,12 @@ def decode_y(y, tilt_c_deg, pan_c_deg=0.0):
         ``(pan_l_deg in [0, 360), tilt_l_deg in [-90, 90], rgb (..., 3))``. With
         ``pan_c = 0`` the returned pan equals ``pan_rel``. A tilt past the zenith is
         folded over it (:func:`fold_over_zenith`), as the conventions require.
+
+    The inverse of :func:`encode_y`, even from unnormalised sin/cos pairs:
+
+    >>> pan, tilt, rgb = decode_y([-2.0, 0.0, -0.5, 0.5, 1.0, 0.0, 0.0], tilt_c_deg=45.0)
+    >>> float(pan), float(tilt), rgb.tolist()
+    (90.0, 90.0, [1.0, 0.0, 0.0])
     """
     y = np.asarray(y, dtype=np.float64)
     if y.shape[-1] != Y_SIZE:
@@ -174,7 +223,11 @@ def decode_y(y, tilt_c_deg, pan_c_deg=0.0):
 
 
 def camera_position(tilt_c_deg, r_c_m=20.0, pan_c_deg=0.0) -> np.ndarray:
-    """Camera centre in metres (world frame): spherical (r_c, pan_c, tilt_c)."""
+    """Camera centre in metres (world frame): spherical (r_c, pan_c, tilt_c).
+
+    >>> (np.round(camera_position(30.0, r_c_m=2.0), 12) + 0.0).tolist()   # (2 cos 30, 0, 2 sin 30)
+    [1.732050807569, 0.0, 1.0]
+    """
     return spherical_to_cartesian(r_c_m, pan_c_deg, tilt_c_deg)
 
 
@@ -184,6 +237,12 @@ def camera_basis(tilt_c_deg, pan_c_deg=0.0):
     ``forward`` points from the camera to the origin, ``up`` is +Z made orthogonal to
     it, ``right = forward x up``. Tilts of exactly +-90 (looking straight down) are
     degenerate and rejected.
+
+    A level camera on +X looks along -X; its right-hand side is +Y:
+
+    >>> right, up, forward = camera_basis(0.0)
+    >>> (right + 0.0).tolist(), (up + 0.0).tolist(), (forward + 0.0).tolist()
+    ([0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [-1.0, 0.0, 0.0])
     """
     if abs(float(tilt_c_deg)) >= 90.0:
         raise ValueError(f"camera tilt must be in (-90, 90) degrees, got {tilt_c_deg}")
@@ -196,21 +255,38 @@ def camera_basis(tilt_c_deg, pan_c_deg=0.0):
 
 
 def world_to_camera(v_world, tilt_c_deg, pan_c_deg=0.0) -> np.ndarray:
-    """Rotate world vectors ``(..., 3)`` into the camera frame (x right, y up, z toward camera)."""
+    """Rotate world vectors ``(..., 3)`` into the camera frame (x right, y up, z toward camera).
+
+    For a level camera on +X: world +Y is the image's right, +X points toward the camera.
+
+    >>> (np.round(world_to_camera([[0, 1, 0], [1, 0, 0]], 0.0), 12) + 0.0).tolist()
+    [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
+    """
     right, up, forward = camera_basis(tilt_c_deg, pan_c_deg)
     rot = np.stack([right, up, -forward])  # rows: camera axes in world coordinates
     return np.asarray(v_world, dtype=np.float64) @ rot.T
 
 
 def camera_to_world_vector(v_cam, tilt_c_deg, pan_c_deg=0.0) -> np.ndarray:
-    """Inverse of :func:`world_to_camera` (a rotation: its transpose)."""
+    """Inverse of :func:`world_to_camera` (a rotation: its transpose).
+
+    >>> v = np.array([0.3, -0.2, 0.9])
+    >>> bool(np.allclose(camera_to_world_vector(world_to_camera(v, 35.0, 20.0), 35.0, 20.0), v))
+    True
+    """
     right, up, forward = camera_basis(tilt_c_deg, pan_c_deg)
     rot = np.stack([right, up, -forward])
     return np.asarray(v_cam, dtype=np.float64) @ rot
 
 
 def camera_to_world(tilt_c_deg, r_c_m=20.0, pan_c_deg=0.0) -> np.ndarray:
-    """4x4 camera-frame (x right, y up, z toward camera) to world matrix."""
+    """4x4 camera-frame (x right, y up, z toward camera) to world matrix.
+
+    The camera-frame origin maps to the camera position:
+
+    >>> (np.round(camera_to_world(0.0, r_c_m=20.0) @ [0, 0, 0, 1], 12) + 0.0).tolist()
+    [20.0, 0.0, 0.0, 1.0]
+    """
     right, up, forward = camera_basis(tilt_c_deg, pan_c_deg)
     m = np.eye(4)
     m[:3, 0], m[:3, 1], m[:3, 2] = right, up, -forward
@@ -222,6 +298,12 @@ def mitsuba_sensor_to_world(tilt_c_deg, r_c_m=20.0, pan_c_deg=0.0) -> np.ndarray
     """4x4 ``to_world`` of a Mitsuba sensor (local +X left, +Y up, +Z forward).
 
     Equal to Mitsuba's ``look_at(origin=camera, target=0, up=+Z)``.
+
+    Local +Z (forward) of a level camera on +X is world -X, local +X (left) world -Y:
+
+    >>> m = mitsuba_sensor_to_world(0.0)
+    >>> (m[:3, 2] + 0.0).tolist(), (m[:3, 0] + 0.0).tolist()
+    ([-1.0, 0.0, 0.0], [0.0, -1.0, 0.0])
     """
     right, up, forward = camera_basis(tilt_c_deg, pan_c_deg)
     m = np.eye(4)
@@ -232,5 +314,9 @@ def mitsuba_sensor_to_world(tilt_c_deg, r_c_m=20.0, pan_c_deg=0.0) -> np.ndarray
 
 def travel_direction(to_light) -> np.ndarray:
     """The way light travels (Mitsuba ``directional`` emitter ``direction``) from a
-    ``to_light`` vector (scene toward light). The single place the sign flips."""
+    ``to_light`` vector (scene toward light). The single place the sign flips.
+
+    >>> travel_direction([0.0, 0.0, 1.0]).tolist()   # light overhead travels down
+    [-0.0, -0.0, -1.0]
+    """
     return -np.asarray(to_light, dtype=np.float64)

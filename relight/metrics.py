@@ -45,13 +45,21 @@ def _angle_deg(a, b) -> np.ndarray:
 
 
 def pan_error_deg(pan_pred_deg, pan_gt_deg) -> np.ndarray:
-    """``|wrap180(pred - gt)|`` in [0, 180] degrees; e.g. 359 vs 1 gives 2."""
+    """``|wrap180(pred - gt)|`` in [0, 180] degrees; e.g. 359 vs 1 gives 2.
+
+    >>> pan_error_deg([359.0, 90.0, 10.0], [1.0, 270.0, 350.0]).tolist()
+    [2.0, 180.0, 20.0]
+    """
     diff = np.asarray(pan_pred_deg, dtype=np.float64) - np.asarray(pan_gt_deg, dtype=np.float64)
     return np.abs(wrap180(diff))
 
 
 def tilt_error_deg(tilt_pred_deg, tilt_gt_deg) -> np.ndarray:
-    """``|pred - gt|`` in degrees (light elevation; no wrapping)."""
+    """``|pred - gt|`` in degrees (light elevation; no wrapping).
+
+    >>> tilt_error_deg([30.0, 85.0], [45.0, 60.0]).tolist()
+    [15.0, 25.0]
+    """
     return np.abs(np.asarray(tilt_pred_deg, dtype=np.float64)
                   - np.asarray(tilt_gt_deg, dtype=np.float64))
 
@@ -61,6 +69,16 @@ def direction_error_deg(pan_pred_deg, tilt_pred_deg, pan_gt_deg, tilt_gt_deg) ->
 
     Inputs are pan/tilt in degrees (any real values, broadcast). At the zenith
     (tilt 90) the pan does not matter.
+
+    Opposite horizon directions are 180 apart; at the zenith pan is irrelevant;
+    90 deg of pan at tilt 60 gives ``acos(sin^2 60) = acos(0.75)``:
+
+    >>> float(direction_error_deg(0.0, 0.0, 180.0, 0.0))
+    180.0
+    >>> round(float(direction_error_deg(10.0, 90.0, 200.0, 90.0)), 9)
+    0.0
+    >>> round(float(direction_error_deg(0.0, 60.0, 90.0, 60.0)), 6)   # acos(0.75)
+    41.409622
     """
     return _angle_deg(direction(pan_pred_deg, tilt_pred_deg), direction(pan_gt_deg, tilt_gt_deg))
 
@@ -69,6 +87,13 @@ def colour_error_deg(rgb_pred, rgb_gt) -> np.ndarray:
     """Recovery angular error in degrees, [0, 180], between RGB vectors ``(..., 3)``.
 
     Scale invariant. Zero-length or non-finite vectors raise ValueError.
+
+    >>> float(colour_error_deg([1.0, 0.0, 0.0], [0.0, 1.0, 0.0]))   # orthogonal
+    90.0
+    >>> round(float(colour_error_deg([0.2, 0.4, 0.6], [1.0, 2.0, 3.0])), 9)   # same up to scale
+    0.0
+    >>> round(float(colour_error_deg([1.0, 1.0, 0.0], [1.0, 0.0, 0.0])), 9)
+    45.0
     """
     return _angle_deg(_unit(rgb_pred, "rgb_pred"), _unit(rgb_gt, "rgb_gt"))
 
@@ -92,6 +117,10 @@ def light_errors(pan_pred_deg, tilt_pred_deg, rgb_pred,
     Angles have shape ``(...)``; RGB ``(..., 3)``. Pan may be ``pan_rel`` or world pan,
     as long as prediction and truth use the same one (the direction error is then
     the same too, since a common pan offset is a rotation about +Z).
+
+    >>> e = light_errors(100.0, 40.0, [1, 1, 1], 90.0, 40.0, [1, 1, 1])
+    >>> float(e["pan"]), float(e["tilt"]), float(e["colour"])
+    (10.0, 0.0, 0.0)
     """
     return {
         "pan": pan_error_deg(pan_pred_deg, pan_gt_deg),
@@ -108,6 +137,13 @@ def summary_stats(values) -> dict:
     trimean = (Q1 + 2 median + Q3) / 4 with numpy's default (linear) quantiles;
     best25 / worst25 = mean of the ``k = max(1, n // 4)`` smallest / largest values.
     Empty input gives ``n = 0`` and NaN for the rest; NaN or inf raises ValueError.
+
+    Of [1, 2, 3, 4, 10]: Q1 = 2, median 3, Q3 = 4, so trimean = (2 + 6 + 4) / 4 = 3;
+    k = 1, so best25 = 1 and worst25 = 10:
+
+    >>> s = summary_stats([4, 1, 10, 3, 2])
+    >>> [s[k] for k in ("n", "mean", "median", "trimean", "best25", "worst25", "max")]
+    [5, 4.0, 3.0, 3.0, 1.0, 10.0, 10.0]
     """
     v = np.asarray(values, dtype=np.float64).ravel()
     if not np.all(np.isfinite(v)):
@@ -129,6 +165,9 @@ def tilt_level(tilt_gt_deg) -> np.ndarray:
     """Tilt level labels ("L1", "L2", "L3"; "" outside) of true tilts in degrees.
 
     L1 [30, 50), L2 [50, 70), L3 [70, 90] (90 included). Shape follows the input.
+
+    >>> tilt_level([29.9, 30.0, 50.0, 69.9, 70.0, 90.0]).tolist()
+    ['', 'L1', 'L2', 'L2', 'L3', 'L3']
     """
     t = np.asarray(tilt_gt_deg, dtype=np.float64)
     conds, labels = [], []
@@ -145,6 +184,9 @@ def pan_level(pan_rel_gt_deg, tilt_gt_deg) -> np.ndarray:
     ``pan_rel`` is wrapped to [0, 360) first; each level is [lo, hi) and front wraps
     around 0 ([315, 360) or [0, 45)). Only true tilts in [30, 70] (inclusive) get a
     label, as in the paper's pan table. Shape: the broadcast of both inputs.
+
+    >>> pan_level([0.0, 45.0, 180.0, 314.9, -10.0, 90.0], [40, 40, 40, 40, 40, 80]).tolist()
+    ['front', 'right', 'back', 'left', 'front', '']
     """
     p = wrap360(pan_rel_gt_deg)
     t = np.asarray(tilt_gt_deg, dtype=np.float64)
@@ -173,6 +215,10 @@ def error_tables(errors: dict[str, np.ndarray], tilt_gt_deg, pan_rel_gt_deg) -> 
     Returns:
         ``{"overall": {metric: stats}, "tilt_levels": {"L1": {metric: stats}, ...},
         "pan_levels": {"front": {metric: stats}, ...}}``; empty levels have n = 0.
+
+    >>> t = error_tables({"pan": [2.0, 4.0]}, tilt_gt_deg=[40.0, 80.0], pan_rel_gt_deg=[90.0, 90.0])
+    >>> t["overall"]["pan"]["mean"], t["tilt_levels"]["L1"]["pan"]["n"], t["pan_levels"]["right"]["pan"]["n"]
+    (3.0, 1, 1)
     """
     errs = {m: np.asarray(e, dtype=np.float64).ravel() for m, e in errors.items()}
     tilt = np.asarray(tilt_gt_deg, dtype=np.float64).ravel()
@@ -217,6 +263,10 @@ def format_tables(tables: dict, stats=("mean", "median")) -> str:
     Table 1: overall (rows: one per stat). Table 2: tilt levels L1..L3 x stat.
     Table 3: pan levels front/right/back/left x stat. Every row shows its n;
     statistics of empty groups print as "n/a".
+
+    >>> t = error_tables({"pan": [2.0]}, tilt_gt_deg=[40.0], pan_rel_gt_deg=[90.0])
+    >>> format_tables(t).splitlines()[0]
+    '**Table 1. Overall errors (degrees)**'
     """
     for stat in stats:
         if stat not in STAT_LABELS:
