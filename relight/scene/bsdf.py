@@ -15,28 +15,75 @@ Cycles' ``bsdf_oren_nayar``)::
 With ``roughness = 0`` it is exactly Lambert (rho / pi). Sampling is cosine-weighted,
 like Mitsuba's ``diffuse``, so a render with roughness 0 matches ``diffuse`` sample
 for sample.
+
+Plugin ``roughdiffuse`` (class :class:`RoughDiffuse`), parameters:
+
+=============  ===================  =======  ==========================================
+Parameter      Type                 Default  Meaning
+=============  ===================  =======  ==========================================
+reflectance    spectrum or texture  0.5      diffuse albedo rho (linear RGB); exposed
+                                             as ``reflectance`` (differentiable)
+roughness      float in [0, 1]      0.5      Oren-Nayar sigma; 0 is Lambert; exposed as
+                                             ``roughness`` (not differentiable; changing
+                                             it does not recompile kernels)
+=============  ===================  =======  ==========================================
+
+Flags: diffuse reflection, front side only (back-facing directions give zero).
+
+Like Mitsuba's own Python plugins, the class is defined and registered when this
+module is imported with a Mitsuba variant already set (``mi.set_variant`` or
+:func:`relight.backend.init`); imported before that (e.g. by a command's ``--help``)
+the module loads without touching Mitsuba, ``RoughDiffuse`` is ``None``, and
+:func:`register` defines and registers the class for the current variant (again after
+a variant switch)::
+
+    from relight import backend
+    from relight.scene import bsdf
+    mi = backend.init()
+    bsdf.register()
+    b = mi.load_dict({"type": "roughdiffuse", "roughness": 0.3,
+                      "reflectance": {"type": "rgb", "value": [0.6, 0.5, 0.4]}})
 """
 from __future__ import annotations
 
+import importlib
 import math
+import sys
 
 from relight import backend
 
 PLUGIN = "roughdiffuse"
-_registered = False
 
 
-def register() -> None:
-    """Register the ``roughdiffuse`` plugin with Mitsuba (idempotent)."""
-    global _registered
-    if _registered:
-        return
-    mi = backend.mitsuba()
-    dr = backend.drjit()
+def _variant_mitsuba():
+    """The ``mitsuba`` module if it is imported with a variant set, else None. Never
+    imports or initialises Mitsuba (the backend chooses libLLVM before that)."""
+    mod = sys.modules.get("mitsuba")
+    if mod is None or "drjit" not in sys.modules:
+        return None
+    try:
+        return mod if mod.variant() else None
+    except Exception:  # noqa: BLE001 - a half-initialised Mitsuba means "not ready"
+        return None
 
-    class RoughDiffuse(mi.BSDF):
-        """Oren-Nayar rough diffuse reflection; parameters ``reflectance`` (texture)
-        and ``roughness`` (float in [0, 1])."""
+
+mi = _variant_mitsuba()
+RoughDiffuse = None       # the plugin class, defined below when a variant is set
+_registered_variant = None  # the variant RoughDiffuse was defined and registered for
+
+if mi is not None:
+    import drjit as dr
+
+    class RoughDiffuse(mi.BSDF):  # noqa: F811 - defined only with a variant set
+        """Oren-Nayar rough diffuse reflection (Mitsuba plugin ``roughdiffuse``).
+
+        ===========  ===================  =======  =================================
+        Parameter    Type                 Default  Meaning
+        ===========  ===================  =======  =================================
+        reflectance  spectrum or texture  0.5      albedo rho (linear RGB)
+        roughness    float in [0, 1]      0.5      Oren-Nayar sigma; 0 is Lambert
+        ===========  ===================  =======  =================================
+        """
 
         def __init__(self, props):
             mi.BSDF.__init__(self, props)
@@ -100,4 +147,16 @@ def register() -> None:
             return f"RoughDiffuse[roughness={self.roughness}]"
 
     mi.register_bsdf(PLUGIN, lambda props: RoughDiffuse(props))
-    _registered = True
+    _registered_variant = mi.variant()
+
+
+def register() -> None:
+    """Make ``roughdiffuse`` available in the current variant (idempotent).
+
+    Initialises the backend if needed; when the module was imported before a variant
+    was set (or the variant changed since), it is reloaded so that the class above is
+    defined and registered for the current variant.
+    """
+    current = backend.mitsuba().variant()
+    if _registered_variant != current:
+        importlib.reload(sys.modules[__name__])
