@@ -30,8 +30,15 @@ def meshes():
     return {(fam, s): _mesh(fam, s) for fam in S.FAMILIES for s in SEEDS}
 
 
-def test_families_listed():
-    assert {"superquadric", "torus", "revolved", "extrusion", "blob", "primitive"} <= set(S.FAMILIES)
+def test_scene_sampler_draws_every_family_and_only_those_asked():
+    # the generator's own draw (not the list itself): 40 scenes of 1-3 objects reach all
+    # six families; a config restricted to one family draws only that one
+    from relight.scene.sampling import GeneratorConfig, sample_scene
+    drawn = {o.family for i in range(40) for o in sample_scene(GeneratorConfig(), 5, i).objects}
+    assert drawn == {"superquadric", "torus", "revolved", "extrusion", "blob", "primitive"}
+    only = {o.family for i in range(10)
+            for o in sample_scene(GeneratorConfig(families=("torus",)), 5, i).objects}
+    assert only == {"torus"}
 
 
 def test_grid_faces_layout():
