@@ -4,8 +4,9 @@ The optimiser's direction gradient IS a central finite difference with common ra
 numbers (see the module docstring for why), so it is checked for (a) consistency with
 a much finer difference at many more samples and (b) being a descent direction of the
 accurately evaluated loss. Colour is exactly linear: Mitsuba's automatic gradient with
-respect to the light intensity is checked against the closed form and a central
-difference, and the closed-form colour fit recovers a known colour from a render.
+respect to the light intensity is checked against the closed form, the closed form
+against a central difference of the loss of renders at shifted intensities, and the
+closed-form colour fit recovers a known colour from a render.
 """
 from __future__ import annotations
 
@@ -102,8 +103,11 @@ def test_ad_colour_gradient_matches_closed_form_and_fd(scene, mi):
     unit_grad = renderer.render(spec.pan_rel_deg, spec.light.tilt_deg, spec.light.r_m, 32, spp,
                                 seed + 1000) / spec.light.r_m ** 2
 
-    def loss_np(c):
-        return float(np.sum((target - c * unit) ** 2))
+    def loss_rendered(c):   # the loss of a real render at intensity c (same seed)
+        tpl.params["light.intensity.value"] = mi.Color3f(*[float(v) for v in c])
+        tpl.params.update()
+        image = np.array(mi.render(tpl.scene, tpl.params, spp=spp, seed=seed), dtype=np.float64)
+        return float(np.sum((target - image) ** 2))
 
     tpl.params["light.intensity.value"] = mi.Color3f(*[float(v) for v in c0])
     intensity = tpl.params["light.intensity.value"]
@@ -118,7 +122,8 @@ def test_ad_colour_gradient_matches_closed_form_and_fd(scene, mi):
     g_closed = -2.0 * np.einsum("ijc,ijc->c", target - c0 * unit, unit)
     g_closed_ad = -2.0 * np.einsum("ijc,ijc->c", target - c0 * unit, unit_grad)
     h = 5.0
-    g_fd = np.array([(loss_np(c0 + h * e) - loss_np(c0 - h * e)) / (2 * h) for e in np.eye(3)])
+    g_fd = np.array([(loss_rendered(c0 + h * e) - loss_rendered(c0 - h * e)) / (2 * h)
+                     for e in np.eye(3)])
     # the sum cancels (signed residuals): judge errors against the sum of magnitudes
     scale = 2.0 * np.einsum("ijc,ijc->c", np.abs(target - c0 * unit), unit)
     assert np.all(np.abs(g_ad - g_closed_ad) < AD_REL_TOL * scale)
