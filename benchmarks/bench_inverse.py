@@ -12,7 +12,8 @@ On a held-out generated set (scene geometry known), in one run:
   against a fine finite-difference reference (512 spp, h = 0.25 deg, 64 px);
 * a convergence plot (direction error vs LM iteration and vs seconds) for a few images.
 
-Make the data first (not in the repo), e.g.::
+The data (not in the repo) is made on first use when ``--data`` holds no dataset:
+``--n`` images (at least 20) of the default generator at 32 spp, seed 3, the same as::
 
     relight generate --count 20 --out /root/relight-data/inv_bench --seed 3 --spp 32
     python benchmarks/bench_inverse.py --data /root/relight-data/inv_bench --n 10
@@ -34,6 +35,21 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 STANDIN_OFFSET_DEG = 8.0
 REF_SPP, REF_STEP_DEG, REF_RES = 512, 0.25, 64
+DATA_SEED, DATA_SPP, DATA_MIN_COUNT = 3, 32, 20
+
+
+def ensure_data(folder: str, n: int) -> None:
+    """Generate the benchmark's dataset in ``folder`` when it is missing or has fewer
+    than ``n`` images (resumes an unfinished one); one line says so."""
+    from relight.dataset import MANIFEST, generate, read_manifest
+    from relight.scene.sampling import GeneratorConfig
+    have = len(read_manifest(folder)) if os.path.isfile(os.path.join(folder, MANIFEST)) else 0
+    if have >= n:
+        return
+    count = max(n, DATA_MIN_COUNT)
+    print(f"# bench_inverse: making {count} images in {folder} (relight generate --count {count} "
+          f"--out {folder} --seed {DATA_SEED} --spp {DATA_SPP})", file=sys.stderr)
+    generate(folder, count, seed=DATA_SEED, cfg=GeneratorConfig(spp=DATA_SPP))
 
 
 def _errors(preds, recs):
@@ -148,6 +164,7 @@ def main(argv=None) -> int:
     from relight.scene.build import SceneBuilder
 
     os.makedirs(args.out_dir, exist_ok=True)
+    ensure_data(args.data, args.n)
     recs = read_manifest(args.data)[:args.n]
     images = [read_image(safe_join(args.data, r["exr"]))[0] for r in recs]
     specs = [load_spec(args.data, r) for r in recs]
@@ -278,4 +295,9 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from relight.cli import user_errors
+    try:
+        sys.exit(main())
+    except user_errors() as exc:   # bad --data and the like: one line, exit 2
+        print(f"bench_inverse: {exc}", file=sys.stderr)
+        sys.exit(2)
