@@ -66,7 +66,7 @@ def user_errors() -> tuple[type, ...]:
               FileNotFoundError, PermissionError, IsADirectoryError, NotADirectoryError]
     for extra in ("relight.predictions:PredictionsError", "relight.net.io:ModelFileError",
                   "relight.probes:ProbeError", "relight.probe_geometry:ProbeError",
-                  "relight.blender:BlenderError"):
+                  "relight.blender:BlenderError", "relight.engine:EngineError"):
         mod, _, cls = extra.partition(":")
         try:
             errors.append(getattr(importlib.import_module(mod), cls))

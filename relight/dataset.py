@@ -61,6 +61,8 @@ class GenerateStats:
     skipped: int = 0
     total_s: float = 0.0
     render_s: float = 0.0
+    tasks: int = 0          # engine tasks (shards) run, with --scheduler
+    task_s: float = 0.0     # summed wall time inside those tasks (render + write)
 
     @property
     def images_per_s(self) -> float:
@@ -229,15 +231,17 @@ def _write(out: str, spec: SceneSpec, image: np.ndarray, split: str) -> dict:
     return record_for(spec, split)
 
 
-def _pipeline(out: str, cfg: GeneratorConfig, seed: int, indices: list[int], on_record) -> None:
+def _pipeline(out: str, cfg: GeneratorConfig, seed: int, indices: list[int], on_record,
+              builder=None) -> None:
     """Generate ``indices`` in order with three overlapping stages: prepare the next
     scene and write the previous image while Mitsuba renders the current one.
     ``on_record(record, render_s)`` is called in index order from the writer thread,
-    only after the image's files are complete."""
+    only after the image's files are complete. ``builder``: a SceneBuilder to reuse
+    (its loaded templates) across calls; a new one by default."""
     from concurrent.futures import ThreadPoolExecutor
 
     from relight.scene.build import SceneBuilder
-    builder = SceneBuilder()
+    builder = builder or SceneBuilder()
     with ThreadPoolExecutor(1, thread_name_prefix="prepare") as prep, \
             ThreadPoolExecutor(1, thread_name_prefix="write") as writer:
         pending_writes = []
@@ -296,7 +300,7 @@ def _worker(out, cfg, seed, indices, threads, queue, parent_pid=None, watch=None
 
 def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
              cfg: GeneratorConfig | None = None, workers: int = 1, progress: bool = True,
-             threads: int | None = None) -> GenerateStats:
+             threads: int | None = None, scheduler=None) -> GenerateStats:
     """Generate (or resume) a dataset of ``count`` images in ``out_dir``.
 
     Args:
@@ -307,6 +311,8 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
         workers: processes rendering in parallel (each gets cores / workers threads).
         progress: show a progress bar (images/s) on stderr.
         threads: Dr.Jit threads per process (default: cores / workers).
+        scheduler: run on Dask instead (:class:`relight.engine.Scheduler` or its text,
+            ``local:N`` or an address); ``workers`` is then ignored. Same output.
     """
     cfg = cfg or GeneratorConfig()
     if isinstance(count, bool) or not isinstance(count, int) or not 0 <= count <= MAX_COUNT:
@@ -317,6 +323,9 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
         raise DatasetError(f"workers must be >= 1, got {workers}")
     if threads is not None and threads < 1:
         raise DatasetError(f"threads must be >= 1, got {threads}")
+    if isinstance(scheduler, str):
+        from relight.engine import parse_scheduler
+        scheduler = parse_scheduler(scheduler)
     out = os.fspath(out_dir)
     if os.path.lexists(out) and not os.path.isdir(out):
         raise DatasetError(f"{out} exists and is not a folder")
@@ -333,7 +342,7 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
     old_card = open(card_path, "rb").read() if os.path.isfile(card_path) else None
     stats = GenerateStats()
     try:
-        return _generate_locked(out, count, seed, cfg, workers, progress, threads, stats)
+        return _generate_locked(out, count, seed, cfg, workers, progress, threads, stats, scheduler)
     except BaseException:
         if stats.written == 0:   # nothing made: leave the folder as it was
             if not existed:
@@ -370,7 +379,8 @@ def _has_records(out: str) -> bool:
 
 
 def _generate_locked(out: str, count: int, seed: int, cfg: GeneratorConfig, workers: int,
-                     progress: bool, threads: int | None, stats: GenerateStats) -> GenerateStats:
+                     progress: bool, threads: int | None, stats: GenerateStats,
+                     scheduler=None) -> GenerateStats:
     from tqdm import tqdm
     remove_temps(out, ("", "images", "exr", "scenes"))   # left by killed runs (we hold the lock)
     for sub in ("images", "exr", "scenes"):
@@ -386,7 +396,10 @@ def _generate_locked(out: str, count: int, seed: int, cfg: GeneratorConfig, work
         return stats
     cores = os.cpu_count() or 1
     workers = min(workers, len(todo))
+    user_threads = threads
     threads = threads or max(1, cores // workers)
+    if scheduler is not None:
+        workers = 2   # the client renders nothing; it checks meshes with one thread
     if workers == 1 or cfg.mesh_dir:
         from relight import backend
         backend.init(threads=threads if workers == 1 else 1)
@@ -402,7 +415,9 @@ def _generate_locked(out: str, count: int, seed: int, cfg: GeneratorConfig, work
             stats.render_s += render_s
             bar.update(1)
 
-        if workers == 1:
+        if scheduler is not None:
+            _run_engine(scheduler, user_threads, out, cfg, seed, todo, append, stats, progress)
+        elif workers == 1:
             _pipeline(out, cfg, seed, todo, append)
         else:
             ctx = mp.get_context("spawn")
@@ -428,6 +443,25 @@ def _generate_locked(out: str, count: int, seed: int, cfg: GeneratorConfig, work
     stats.total_s = time.perf_counter() - t_start
     bar.close()
     return stats
+
+
+def _run_engine(scheduler, threads, out, cfg, seed, todo, append, stats, progress) -> None:
+    """Render ``todo`` on Dask (:mod:`relight.engine`); ``append`` each record of a
+    finished task here, in the client, once (a re-run task's records are skipped)."""
+    from relight import engine
+    appended = set()
+    with engine.client(scheduler, threads) as (c, threads_by_host):
+        if progress:
+            engine.announce(c, local=bool(scheduler.local))
+
+        def on_result(result):
+            stats.tasks += 1
+            stats.task_s += result.task_s
+            for record, render_s in zip(result.records, result.render_s):
+                if record["id"] not in appended:
+                    appended.add(record["id"])
+                    append(record, render_s)
+        engine.run_shards(c, threads_by_host, out, cfg, seed, todo, on_result)
 
 
 def load_spec(dataset_dir: str | os.PathLike, record: dict) -> SceneSpec:

@@ -112,6 +112,15 @@ light_pan = float_in(-360.0, 360.0, "a light pan in degrees")
 light_tilt = float_in(-90.0, 90.0, "a light tilt in degrees")
 
 
+def scheduler(text: str):
+    """``local:N`` or a Dask scheduler address (see :func:`relight.engine.parse_scheduler`)."""
+    from relight.engine import EngineError, parse_scheduler
+    try:
+        return parse_scheduler(text)
+    except EngineError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def bounded_rgb(text: str) -> tuple[float, float, float]:
     """``R,G,B``: three finite numbers in [0, 1e6], the largest at least 1e-6."""
     values = rgb(text)

@@ -28,6 +28,10 @@ def add_commands(sub) -> None:
                    help="surface-colour prior of textures and objects (default hsv; see README)")
     g.add_argument("--max-depth", type=at.max_depth, default=None, help="path depth (default 4)")
     g.add_argument("--workers", type=at.workers, default=1, help="parallel render processes (default 1)")
+    g.add_argument("--scheduler", type=at.scheduler, default=None,
+                   help="render on Dask: local:N (N worker processes on this machine) or the "
+                        "address of a running scheduler (tcp://host:8786); workers must see "
+                        "--out at the same path (default: this process, see --workers)")
     g.add_argument("--config", default=None, help="JSON file of generator settings")
     g.add_argument("--mesh-dir", default=None, help="folder of your own .obj/.ply meshes (z up)")
     g.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -58,7 +62,7 @@ def cmd_generate(args) -> int:
         cfg = GeneratorConfig(**{k: v for k, v in overrides.items() if v is not None})
     check_outputs([args.out], [args.config, args.mesh_dir])
     stats = generate(args.out, args.count, seed=args.seed, cfg=cfg, workers=args.workers,
-                     progress=not args.quiet, threads=args.threads)
+                     progress=not args.quiet, threads=args.threads, scheduler=args.scheduler)
     msg = f"{args.out}: {stats.written} images written, {stats.skipped} already there"
     if stats.written:
         msg += f" ({stats.images_per_s:.2f} img/s, total/render time {stats.overhead_ratio:.2f})"

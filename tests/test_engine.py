@@ -1,0 +1,158 @@
+"""Dask engine (``--scheduler``): same bytes as one process, one writer, faults, bad input."""
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+
+from relight.dataset import generate, read_manifest
+from relight.engine import EngineError, parse_scheduler, shards
+from relight.scene.sampling import GeneratorConfig
+
+distributed = pytest.importorskip("distributed")
+
+CFG = GeneratorConfig(res=16, spp=2)
+SEED = 21
+FOLDERS = ("images", "exr", "scenes")
+
+
+def _same_files(a, b, n):
+    for i in range(n):
+        for sub, ext in zip(FOLDERS, (".png", ".exr", ".json")):
+            name = f"{i:06d}{ext}"
+            assert (a / sub / name).read_bytes() == (b / sub / name).read_bytes(), f"{sub}/{name}"
+
+
+def _records_by_id(folder):
+    recs = read_manifest(folder)
+    ids = [r["id"] for r in recs]
+    assert len(ids) == len(set(ids))
+    with open(folder / "manifest.jsonl") as f:   # no duplicate line either (read_manifest merges them)
+        assert sum(1 for _ in f) == len(ids)
+    return {r["id"]: r for r in recs}
+
+
+@pytest.fixture(scope="module")
+def single(tmp_path_factory, mi):
+    out = tmp_path_factory.mktemp("single")
+    assert generate(out, 12, seed=SEED, cfg=CFG, progress=False).written == 12
+    return out
+
+
+def test_parse_scheduler():
+    assert parse_scheduler("local:3").local == 3
+    assert parse_scheduler("tcp://10.0.0.5:8786").address == "tcp://10.0.0.5:8786"
+    assert parse_scheduler("node12:8786").address == "node12:8786"
+    for bad in ("local:0", "local:x", "local", "tcp://a b:1", "", "local:999"):
+        with pytest.raises(EngineError):
+            parse_scheduler(bad)
+
+
+def test_shards_cover_indices_once_in_order():
+    todo = [0, 2, 3, 5, 7, 8, 9, 10, 11, 40, 41]
+    for workers in (1, 2, 5, 100):
+        parts = shards(todo, workers)
+        assert [i for p in parts for i in p] == todo
+        assert all(1 <= len(p) <= 8 for p in parts)
+    assert len(shards(list(range(100)), 1)) == 13    # at most 8 images a task: ceil(100 / 8)
+    assert len(shards(list(range(16)), 2)) == 8      # 4 tasks per worker when there are enough
+    assert shards([], 3) == []
+
+
+def test_local_cluster_is_byte_identical_and_resumes(tmp_path, single):
+    out = tmp_path / "dask"
+    stats = generate(out, 5, seed=SEED, cfg=CFG, progress=False, scheduler="local:2")
+    assert stats.written == 5 and stats.tasks >= 2
+    stats = generate(out, 12, seed=SEED, cfg=CFG, progress=False, scheduler="local:2")
+    assert stats.written == 7 and stats.skipped == 5
+    _same_files(single, out, 12)
+    assert _records_by_id(out) == _records_by_id(single)    # same content, any order
+    assert (out / "dataset.json").read_bytes() == (single / "dataset.json").read_bytes()
+
+
+def test_sigkill_of_a_worker_mid_run_loses_and_duplicates_nothing(tmp_path, single):
+    out = tmp_path / "killed"
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        pids = list(client.run(os.getpid).values())
+        result = {}
+
+        def run():
+            try:
+                result["stats"] = generate(out, 12, seed=SEED, cfg=CFG, progress=False,
+                                           scheduler=cluster.scheduler_address)
+            except BaseException as exc:  # noqa: BLE001 - reported by the assertion below
+                result["error"] = exc
+        t = threading.Thread(target=run)
+        t.start()
+        manifest = out / "manifest.jsonl"
+        deadline = time.time() + 120
+        while time.time() < deadline and not (manifest.exists() and manifest.stat().st_size):
+            time.sleep(0.02)
+        os.kill(pids[0], signal.SIGKILL)   # a worker process dies mid-run
+        t.join(300)
+    assert "error" not in result, result.get("error")
+    assert result["stats"].written == 12
+    _same_files(single, out, 12)
+    assert _records_by_id(out) == _records_by_id(single)
+
+
+def _cli(*args):
+    return subprocess.run([sys.executable, "-m", "relight.cli", *args], capture_output=True, text=True,
+                          timeout=300)
+
+
+def test_bad_scheduler_is_one_line_exit_2(tmp_path):
+    proc = _cli("generate", "--out", str(tmp_path / "x"), "--count", "1", "--scheduler", "local:0")
+    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.slow
+def test_unreachable_scheduler_is_one_line_exit_2(tmp_path):
+    proc = _cli("generate", "--out", str(tmp_path / "y"), "--count", "1", "--res", "16", "--spp", "2",
+                "--scheduler", "tcp://127.0.0.1:9", "--quiet")
+    assert proc.returncode == 2, proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1 and "scheduler" in proc.stderr
+    assert not (tmp_path / "y").exists()   # nothing made: the folder is left as it was
+
+
+@pytest.mark.slow
+def test_lost_scheduler_stops_with_one_line_and_rerun_resumes(tmp_path, single):
+    out = tmp_path / "lost"
+    sched = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--port", "0",
+                              "--no-dashboard", "--scheduler-file", str(tmp_path / "s.json")],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    worker = None
+    try:
+        deadline = time.time() + 60
+        while not (tmp_path / "s.json").exists() and time.time() < deadline:
+            time.sleep(0.1)
+        import json
+        address = json.loads((tmp_path / "s.json").read_text())["address"]
+        worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address,
+                                   "--nthreads", "1", "--no-dashboard"],
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        gen = subprocess.Popen([sys.executable, "-m", "relight.cli", "generate", "--out", str(out),
+                                "--count", "40", "--res", "16", "--spp", "2", "--seed", str(SEED),
+                                "--scheduler", address, "--quiet"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        manifest = out / "manifest.jsonl"
+        while time.time() < deadline + 120 and not (manifest.exists() and manifest.stat().st_size):
+            time.sleep(0.05)
+        sched.kill()
+        _, err = gen.communicate(timeout=120)
+    finally:
+        for p in (sched, worker):
+            if p is not None and p.poll() is None:
+                p.kill()
+                p.wait()
+    assert gen.returncode == 2, err
+    assert len(err.strip().splitlines()) == 1 and "re-run" in err
+    proc = _cli("generate", "--out", str(out), "--count", "12", "--res", "16", "--spp", "2",
+                "--seed", str(SEED), "--scheduler", "local:1", "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    _same_files(single, out, 12)
