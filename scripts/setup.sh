@@ -46,4 +46,13 @@ if [ -z "${DRJIT_LIBLLVM_PATH:-}" ] && ! have_good_llvm; then
     "$VPY" -m pip install --quiet karellen-llvm-core
   fi
 fi
+# Headless Chromium for the test that opens the compare report (skipped where absent).
+# Root only, tried once per environment (RELIGHT_NO_CHROMIUM=1 skips it); never fails the set-up.
+if ! command -v chromium >/dev/null 2>&1 && [ -z "${RELIGHT_NO_CHROMIUM:-}" ] \
+    && [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1 && [ ! -e "$VENV/.chromium-tried" ]; then
+  echo "[setup] installing Debian chromium (for the report test)"
+  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
+      chromium >/dev/null) || echo "[setup] chromium not installed; the report browser test will skip"
+  touch "$VENV/.chromium-tried" || true
+fi
 echo "[setup] ok: $("$VPY" -c 'import relight.backend as b; print(b.describe())')"

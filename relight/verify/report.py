@@ -108,21 +108,108 @@ def _write_csv(path: str, rows: list[dict]) -> None:
             writer.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
 
 
+def _inline(text: str) -> str:
+    """Escaped text with markdown's ``**bold**`` and ```code``` as HTML."""
+    import re
+    t = html.escape(text)
+    t = re.sub(r"\*\*(.+?)\*\*", r"<b>\1</b>", t)
+    return re.sub(r"`(.+?)`", r"<code>\1</code>", t)
+
+
+def markdown_html(md: str) -> str:
+    """HTML of the report's markdown (tables with their column alignment, bold title
+    lines, bullet lists, paragraphs): the subset :mod:`relight.metrics` and this module
+    write, so no markdown library is needed."""
+    out, lines, i = [], md.splitlines(), 0
+    while i < len(lines):
+        line = lines[i].strip()
+        if line.startswith("|"):
+            block = []
+            while i < len(lines) and lines[i].strip().startswith("|"):
+                block.append([c.strip() for c in lines[i].strip().strip("|").split("|")])
+                i += 1
+            head, body = block[0], block[1:]
+            align = ["right" if c.endswith(":") else "left" for c in body[0]] \
+                if body and all(set(c) <= set("-:") and c for c in body[0]) else None
+            if align is not None:
+                body = body[1:]
+            align = align or ["left"] * len(head)
+            out.append("<table class='stats'><thead><tr>" + "".join(
+                f"<th style='text-align:{a}'>{_inline(c)}</th>" for c, a in zip(head, align))
+                + "</tr></thead><tbody>")
+            out += ["<tr>" + "".join(f"<td style='text-align:{a}'>{_inline(c)}</td>"
+                                     for c, a in zip(row, align)) + "</tr>" for row in body]
+            out.append("</tbody></table>")
+            continue
+        if line.startswith("- "):
+            out.append("<ul>")
+            while i < len(lines) and lines[i].strip().startswith("- "):
+                out.append(f"<li>{_inline(lines[i].strip()[2:])}</li>")
+                i += 1
+            out.append("</ul>")
+            continue
+        if line:
+            out.append(f"<p>{_inline(line)}</p>")
+        i += 1
+    return "\n".join(out)
+
+
+# Click a header of the per-image table to sort by it (again: reverse); numbers sort by
+# value (data-v), text alphabetically. The last lines count the images that loaded,
+# for a look at the page (and the headless-browser test).
+_PAGE_SCRIPT = """
+document.querySelectorAll('table.sortable').forEach(function (table) {
+  table.querySelectorAll('th').forEach(function (th, col) {
+    th.addEventListener('click', function () {
+      var body = table.tBodies[0], rows = Array.from(body.rows);
+      var dir = th.dataset.dir === 'asc' ? -1 : 1;
+      table.querySelectorAll('th').forEach(function (h) { delete h.dataset.dir; });
+      th.dataset.dir = dir === 1 ? 'asc' : 'desc';
+      function key(r) { var c = r.cells[col]; return c.dataset.v !== undefined ? parseFloat(c.dataset.v) : c.textContent; }
+      rows.sort(function (a, b) {
+        var x = key(a), y = key(b);
+        if (typeof x === 'number' && typeof y === 'number') {
+          if (isNaN(x)) return 1; if (isNaN(y)) return -1; return dir * (x - y);
+        }
+        return dir * String(x).localeCompare(String(y));
+      });
+      rows.forEach(function (r) { body.appendChild(r); });
+    });
+  });
+});
+window.addEventListener('load', function () {
+  var imgs = Array.from(document.images);
+  var ok = imgs.filter(function (im) { return im.complete && im.naturalWidth > 0; }).length;
+  var el = document.getElementById('image-check');
+  el.dataset.loaded = ok; el.dataset.total = imgs.length;
+  el.textContent = ok + ' of ' + imgs.length + ' images loaded';
+});
+"""
+
+
 def _index_html(summary: dict, tables_md: str, rows: list[dict], panel_names: list[str]) -> str:
     esc = html.escape
     out = ["<!doctype html><html><head><meta charset='utf-8'><title>relight compare</title>",
            "<style>body{font-family:sans-serif;margin:2em;max-width:1200px}"
-           "table{border-collapse:collapse;font-size:12px}td,th{border:1px solid #ccc;padding:2px 6px}"
+           "table{border-collapse:collapse;font-size:12px;margin-bottom:1em}"
+           "td,th{border:1px solid #ccc;padding:2px 6px}"
+           "table.sortable th{cursor:pointer;background:#f4f4f4}"
+           "table.sortable th[data-dir=asc]::after{content:' \\25B2'}"
+           "table.sortable th[data-dir=desc]::after{content:' \\25BC'}"
+           "#image-check{color:#888;font-size:11px}"
            "img.panel{width:100%;max-width:900px}</style></head><body>",
            "<h1>relight compare</h1>",
            f"<p>Predictions: <code>{esc(str(summary['predictions']))}</code><br>Dataset: "
            f"<code>{esc(str(summary['dataset']))}</code><br>{summary['n']} images compared, "
            f"{summary['n_bad']} bad entries.</p>",
            "".join(f"<p><i>{esc(n)}</i></p>" for n in summary["notes"]),
-           "<h2>Figure 3</h2><p>Rows: (a) original, (b) re-rendered under the predicted light, "
-           "(c) luminance difference; columns from smallest to largest direction error "
-           "(<a href='figure3.pdf'>PDF</a>).</p><img src='figure3.png' style='max-width:100%'>",
-           f"<h2>Tables</h2><pre>{esc(tables_md)}</pre>"]
+           "<p id='image-check'></p>"]
+    if panel_names:
+        out.append("<h2>Figure 3</h2><p>Rows: (a) original, (b) re-rendered under the predicted "
+                   "light, (c) luminance difference; columns from smallest to largest direction "
+                   "error (<a href='figure3.pdf'>PDF</a>).</p>"
+                   "<img id='figure3' src='figure3.png' alt='Figure 3' style='max-width:100%'>")
+    out.append(f"<h2>Tables</h2><p><a href='tables.md'>tables.md</a></p>{markdown_html(tables_md)}")
     if summary["bad"]:
         out.append("<h2>Bad entries (skipped)</h2><ul>")
         out += [f"<li><b>{esc(b['entry'])}</b>: {esc(b['reason'])}</li>" for b in summary["bad"]]
@@ -130,17 +217,22 @@ def _index_html(summary: dict, tables_md: str, rows: list[dict], panel_names: li
     if rows:
         keys = ["id", "direction_error_deg", "colour_error_deg", "pan_error_deg", "tilt_error_deg",
                 "rmse", "noise_rmse", "ssim", "noise_ssim"]
-        out.append("<h2>Per image</h2><p><a href='metrics.csv'>metrics.csv</a></p><table><tr>"
-                   + "".join(f"<th>{k}</th>" for k in keys) + "</tr>")
+        out.append("<h2>Per image</h2><p><a href='metrics.csv'>metrics.csv</a>; click a column "
+                   "header to sort.</p><table class='sortable' id='per-image'><thead><tr>"
+                   + "".join(f"<th>{k}</th>" for k in keys) + "</tr></thead><tbody>")
         for row, name in zip(rows, panel_names):
-            cells = [f"<a href='#{esc(row['id'])}'>{esc(row['id'])}</a>"]
-            cells += [f"{row[k]:.4g}" for k in keys[1:]]
-            out.append("<tr>" + "".join(f"<td>{c}</td>" for c in cells) + "</tr>")
-        out.append("</table>")
+            cells = [f"<td><a href='#{esc(row['id'])}'>{esc(row['id'])}</a></td>"]
+            for k in keys[1:]:
+                v = row[k]
+                num = float(v) if isinstance(v, (int, float, np.floating)) else float("nan")
+                cells.append(f"<td data-v='{num!r}' style='text-align:right'>{v:.4g}</td>"
+                             if math.isfinite(num) else f"<td data-v='NaN'>{esc(str(v))}</td>")
+            out.append("<tr>" + "".join(cells) + "</tr>")
+        out.append("</tbody></table>")
         for row, name in zip(rows, panel_names):
             out.append(f"<h3 id='{esc(row['id'])}'>{esc(row['id'])}</h3>"
-                       f"<img class='panel' src='panels/{esc(name)}' loading='lazy'>")
-    out.append("</body></html>")
+                       f"<img class='panel' src='panels/{esc(name)}' alt='{esc(row['id'])}'>")
+    out.append(f"<script>{_PAGE_SCRIPT}</script></body></html>")
     return "\n".join(out)
 
 
