@@ -87,6 +87,7 @@ def test_same_index_same_image_across_runs(tmp_path, tiny, mi):
     assert a == b
 
 
+@pytest.mark.slow   # two generate processes from a cold start: ~25 s on 2 cores
 def test_kill_minus_9_leaves_consistent_manifest(tmp_path, mi):
     from PIL import Image
     from relight.render import read_exr
