@@ -15,8 +15,8 @@ On a held-out generated set (scene geometry known), in one run:
 The data (not in the repo) is made on first use when ``--data`` holds no dataset:
 ``--n`` images (at least 20) of the default generator at 32 spp, seed 3, the same as::
 
-    relight generate --count 20 --out /root/relight-data/inv_bench --seed 3 --spp 32
-    python benchmarks/bench_inverse.py --data /root/relight-data/inv_bench --n 10
+    relight generate --count 20 --out ~/relight-data/inv_bench --seed 3 --spp 32
+    python benchmarks/bench_inverse.py --data ~/relight-data/inv_bench --n 10
 
 If no network model can be loaded, the "network" rows use a stand-in start (the true
 direction moved 8 deg in a random direction) and are labelled so.
@@ -145,7 +145,8 @@ def gradient_study(recs, data, n):
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", default="/root/relight-data/inv_bench")
+    ap.add_argument("--data", default=os.path.join("~", "relight-data", "inv_bench"),
+                    help="dataset folder (made when missing; default ~/relight-data/inv_bench)")
     ap.add_argument("--n", type=int, default=10, help="images (first N of the manifest, all splits)")
     ap.add_argument("--model", default=None, help="network model file (default: shipped)")
     ap.add_argument("--out-dir", default="/tmp/bench_inverse", help="predictions, traces and the plot")
@@ -164,6 +165,7 @@ def main(argv=None) -> int:
     from relight.scene.build import SceneBuilder
 
     os.makedirs(args.out_dir, exist_ok=True)
+    args.data = os.path.expanduser(args.data)
     ensure_data(args.data, args.n)
     recs = read_manifest(args.data)[:args.n]
     images = [read_image(safe_join(args.data, r["exr"]))[0] for r in recs]
