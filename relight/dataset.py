@@ -63,6 +63,7 @@ class GenerateStats:
     render_s: float = 0.0
     tasks: int = 0          # engine tasks (shards) run, with --scheduler
     task_s: float = 0.0     # summed wall time inside those tasks (render + write)
+    startup_s: float = 0.0  # time to start or reach the cluster (part of total_s)
 
     @property
     def images_per_s(self) -> float:
@@ -450,7 +451,9 @@ def _run_engine(scheduler, threads, out, cfg, seed, todo, append, stats, progres
     finished task here, in the client, once (a re-run task's records are skipped)."""
     from relight import engine
     appended = set()
+    t0 = time.perf_counter()
     with engine.client(scheduler, threads) as (c, threads_by_host):
+        stats.startup_s = time.perf_counter() - t0
         if progress:
             engine.announce(c, local=bool(scheduler.local))
 
