@@ -17,7 +17,7 @@ structure once, so both ways run with compiled kernels), at the default noise ta
 * optionally the template way with 2 worker processes.
 
 Where the Blender environment exists (``scripts/setup_blender.sh``), the Cycles
-comparison of ``benchmarks/bench_cycles.py`` follows.
+comparison of ``benchmarks/bench_cycles.py`` follows (``--no-cycles`` skips it).
 
 Usage: python benchmarks/bench_generate.py [--n 48] [--res 128] [--spp N | --target-rmse E]
                                            [--workers 2] [--calibrate | --no-calibrate]
@@ -108,6 +108,8 @@ def main() -> int:
     ap.add_argument("--workers", type=int, default=2, help="also measure this many worker processes (1: skip)")
     ap.add_argument("--calibrate", action=argparse.BooleanOptionalAction, default=True,
                     help="print the equal-error sampler table first (default on)")
+    ap.add_argument("--cycles", action=argparse.BooleanOptionalAction, default=True,
+                    help="then run bench_cycles.py with its defaults where Blender is set up (default on)")
     args = ap.parse_args()
     backend.init()
     if args.calibrate:
@@ -159,6 +161,8 @@ def main() -> int:
     try:
         import bench_cycles  # noqa: PLC0415 - optional: needs the Blender environment
     except ImportError:
+        bench_cycles = None
+    if not args.cycles:
         bench_cycles = None
     if bench_cycles is not None and hasattr(bench_cycles, "main"):
         print()
