@@ -49,6 +49,7 @@ from __future__ import annotations
 import importlib
 import math
 import sys
+import threading
 
 from relight import backend
 
@@ -67,6 +68,7 @@ def _variant_mitsuba():
         return None
 
 
+_lock = globals().get("_lock") or threading.Lock()   # kept across reloads
 mi = _variant_mitsuba()
 RoughDiffuse = None       # the plugin class, defined below when a variant is set
 _registered_variant = None  # the variant RoughDiffuse was defined and registered for
@@ -158,5 +160,6 @@ def register() -> None:
     defined and registered for the current variant.
     """
     current = backend.mitsuba().variant()
-    if _registered_variant != current:
-        importlib.reload(sys.modules[__name__])
+    with _lock:
+        if _registered_variant != current:
+            importlib.reload(sys.modules[__name__])
