@@ -16,6 +16,13 @@ continues one whose settings changed in ways that keep it meaningful (``epochs``
 and flip augmentation depend only on (seed, epoch), so an interrupted and resumed run
 follows the same path as an uninterrupted one. A dataset still being generated may be
 used: the manifest is re-read at the start of each epoch (``grow``).
+
+Several processes: ``torchrun --nproc-per-node N -m relight train ...`` trains with
+DistributedDataParallel (gloo on CPU, nccl on CUDA): each process takes its share of
+every epoch through a DistributedSampler (seeded by (seed, epoch)), gradients are
+averaged, and rank 0 alone holds the folder lock and writes settings, checkpoints,
+weights and the log; the logged training losses are summed over all processes. One
+process (no ``torchrun``, or one rank) is exactly the single-process path.
 """
 from __future__ import annotations
 
@@ -192,10 +199,60 @@ def plot_curves(rows: list[dict], path: str) -> None:
         plt.close(fig)
 
 
+def distributed_rank_world() -> tuple[int, int]:
+    """``(rank, world size)`` when started by ``torchrun`` with more than one process
+    (``RANK``/``WORLD_SIZE`` set), else ``(0, 1)``."""
+    try:
+        world = int(os.environ.get("WORLD_SIZE", "1") or 1)
+        rank = int(os.environ.get("RANK", "0") or 0)
+    except ValueError:
+        raise DatasetError("RANK and WORLD_SIZE must be integers (set by torchrun)") from None
+    return (rank, world) if world > 1 else (0, 1)
+
+
+class _KappaForward(torch.nn.Module):
+    """``forward`` = ``net.forward_with_kappa(x, calibrated=False)``, so that
+    DistributedDataParallel (which hooks ``forward``) sees the training pass."""
+
+    def __init__(self, net):
+        super().__init__()
+        self.net = net
+
+    def forward(self, x):
+        return self.net.forward_with_kappa(x, calibrated=False)
+
+
+def _ddp_agree(dataset: LightDataset) -> None:
+    """Under DDP, keep the records every process has read (a growing manifest may be
+    read at slightly different moments; records keep file order, so a prefix agrees)."""
+    import torch.distributed as dist
+    n = torch.tensor([len(dataset.records)])
+    dist.all_reduce(n, op=dist.ReduceOp.MIN)
+    dataset.records = dataset.records[:int(n)]
+
+
 def train(cfg: TrainConfig, out_dir: str | os.PathLike, resume: bool = False, progress: bool = True) -> dict:
     """Train (or resume) a run in ``out_dir``; returns the last log row (dict). The run
-    folder is locked for the duration (one writer); the identical command resumes."""
+    folder is locked for the duration (one writer); the identical command resumes.
+    Under ``torchrun`` with several processes, trains with DDP (rank 0 writes and
+    returns the row; other ranks return ``{}``)."""
     out_dir = os.fspath(out_dir)
+    rank, world = distributed_rank_world()
+    if world > 1:
+        import torch.distributed as dist
+        if not dist.is_initialized():
+            dist.init_process_group("nccl" if torch.cuda.is_available() else "gloo")
+        try:
+            if rank != 0:   # rank 0 locks the folder (below), then all meet at a barrier
+                _train_locked(cfg, out_dir, resume, False, ddp=(rank, world))
+                return {}   # rank 0 reports
+            return _train_rank0(cfg, out_dir, resume, progress, (rank, world))
+        finally:
+            dist.destroy_process_group()
+    return _train_rank0(cfg, out_dir, resume, progress, None)
+
+
+def _train_rank0(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, ddp) -> dict:
     if os.path.lexists(out_dir) and not os.path.isdir(out_dir):
         raise DatasetError(f"{out_dir} exists and is not a folder")
     existed = os.path.isdir(out_dir)
@@ -207,7 +264,7 @@ def train(cfg: TrainConfig, out_dir: str | os.PathLike, resume: bool = False, pr
             os.rmdir(out_dir)
         raise
     try:
-        return _train_locked(cfg, out_dir, resume, progress)
+        return _train_locked(cfg, out_dir, resume, progress, ddp=ddp)
     except BaseException:
         if not existed and not os.path.exists(os.path.join(out_dir, CHECKPOINT)):
             import shutil
@@ -223,9 +280,16 @@ def _same_run(saved: dict, cfg: TrainConfig) -> bool:
     return all(saved.get(k) == v for k, v in now.items())
 
 
-def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool) -> dict:
+def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, ddp=None) -> dict:
+    """The training loop; ``ddp`` is ``(rank, world)`` under torchrun (rank 0 writes)."""
     from torch.utils.data import DataLoader
     from tqdm import tqdm
+    writer = ddp is None or ddp[0] == 0
+    if ddp is not None:
+        import torch.distributed as dist
+        from torch.nn.parallel import DistributedDataParallel
+        from torch.utils.data.distributed import DistributedSampler
+        dist.barrier()   # rank 0 holds the folder lock from here on
     ckpt_path = os.path.join(out_dir, CHECKPOINT)
     if os.path.exists(ckpt_path) and not resume:
         try:
@@ -242,6 +306,8 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool) 
 
     train_set = LightDataset(cfg.data_dir, cfg.train_split, cfg.res, flip=cfg.flip, seed=cfg.seed)
     val_set = LightDataset(cfg.data_dir, cfg.val_split, cfg.res)
+    if ddp is not None:
+        _ddp_agree(train_set), _ddp_agree(val_set)
     if len(train_set) == 0:
         raise DatasetError(f"{cfg.data_dir}: no records in split {cfg.train_split!r}")
 
@@ -264,7 +330,9 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool) 
             raise DatasetError(f"{ckpt_path}: checkpoint does not match this network "
                                f"({str(exc).splitlines()[0][:100]}); delete it to start over") from None
     settings = cfg.to_dict() | {"out_dir": out_dir, "parameters": count_parameters(model)}
-    write_json(os.path.join(out_dir, SETTINGS), settings)
+    if writer:
+        write_json(os.path.join(out_dir, SETTINGS), settings)
+    net = DistributedDataParallel(_KappaForward(model)) if ddp is not None else None
     if start_epoch >= cfg.epochs:
         if progress:
             print(f"{out_dir}: already trained for {start_epoch} epochs (asked {cfg.epochs})")
@@ -272,25 +340,38 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool) 
 
     started = time.perf_counter()
     for epoch in range(start_epoch, cfg.epochs):
-        if (cfg.max_minutes is not None and epoch > start_epoch
-                and time.perf_counter() - started > 60.0 * cfg.max_minutes):
+        out_of_time = (cfg.max_minutes is not None and epoch > start_epoch
+                       and time.perf_counter() - started > 60.0 * cfg.max_minutes)
+        if ddp is not None:   # rank 0's clock decides for all
+            flag = torch.tensor([int(out_of_time)])
+            dist.broadcast(flag, 0)
+            out_of_time = bool(flag)
+        if out_of_time:
             if progress:
                 tqdm.write(f"time budget of {cfg.max_minutes:g} min used after epoch {epoch}; "
                            "resume with --resume to continue")
             break
         if cfg.grow and epoch > start_epoch:
             train_set.refresh(), val_set.refresh()
+            if ddp is not None:
+                _ddp_agree(train_set), _ddp_agree(val_set)
         evaluation_set = val_set if len(val_set) else LightDataset(cfg.data_dir, cfg.train_split, cfg.res,
                                                                    records=train_set.records)
         train_set.epoch = epoch
+        if ddp is None:
+            sampler = _epoch_order(len(train_set), cfg.seed, epoch)
+        else:
+            sampler = DistributedSampler(train_set, num_replicas=ddp[1], rank=ddp[0], shuffle=True,
+                                         seed=cfg.seed, drop_last=False)
+            sampler.set_epoch(epoch)
         loader = DataLoader(train_set, batch_size=cfg.batch_size, num_workers=cfg.workers,
-                            sampler=_epoch_order(len(train_set), cfg.seed, epoch), drop_last=False)
+                            sampler=sampler, drop_last=False)
         model.train()
         sums, seen, t0 = {"total": 0.0, "pan": 0.0, "tilt": 0.0, "colour": 0.0, "kappa_nll": 0.0}, 0, time.perf_counter()
         bar = tqdm(loader, desc=f"epoch {epoch + 1}/{cfg.epochs}", disable=not progress, leave=False,
                    dynamic_ncols=True)
         for x, y, index in bar:
-            y_pred, kappa = model.forward_with_kappa(x, calibrated=False)
+            y_pred, kappa = model.forward_with_kappa(x, calibrated=False) if net is None else net(x)
             parts = light_loss(y_pred, y, cfg.loss_weights, parts=True, kappa=kappa,
                                camera_tilt_deg=_camera_tilts(train_set, index) if kappa is not None else None)
             optimiser.zero_grad(set_to_none=True)
@@ -301,6 +382,12 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool) 
                     sums[k] += float(parts[k].detach()) * len(x)
             seen += len(x)
             bar.set_postfix(loss=f"{sums['total'] / seen:.4f}")
+        if ddp is not None:   # the log's training figures cover every process's share
+            totals = torch.tensor([*sums.values(), float(seen)], dtype=torch.float64)
+            dist.all_reduce(totals)
+            sums, seen = dict(zip(sums, totals[:-1].tolist())), int(totals[-1])
+            for buffer in model.buffers():   # batch-norm statistics: rank 0's, as DDP's forward does
+                dist.broadcast(buffer, 0)
         train_time = time.perf_counter() - t0
         y_val, kappa_val = run_model(model, evaluation_set, cfg.batch_size * 4, with_kappa=True)
         with torch.no_grad():
@@ -324,6 +411,8 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool) 
                **{f"val_{m}_deg": float(np.mean(e)) for m, e in errs.items()},
                "epoch_time_s": time.perf_counter() - t0, "train_img_per_s": seen / train_time, **calibration}
         rows.append(row)
+        if not writer:
+            continue
         info = {"epoch": epoch + 1, "val_loss": val_loss, "data_dir": os.path.abspath(cfg.data_dir),
                 "n_train": seen, "settings": cfg.to_dict(),
                 **({"kappa_temperature": calibration["kappa_temperature"]} if calibration else {})}

@@ -1,0 +1,7 @@
+"""``python -m relight`` (and ``torchrun ... -m relight train``): the ``relight`` command."""
+import sys
+
+from relight.cli import main
+
+if __name__ == "__main__":
+    sys.exit(main())
