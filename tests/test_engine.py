@@ -111,6 +111,36 @@ def test_bad_scheduler_is_one_line_exit_2(tmp_path):
     assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1
 
 
+def test_workers_and_scheduler_exclude_each_other(tmp_path):
+    proc = _cli("generate", "--out", str(tmp_path / "x"), "--count", "1", "--workers", "2",
+                "--scheduler", "local:2")
+    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.slow
+def test_kill_minus_9_of_the_client_takes_its_workers_and_resumes(tmp_path, single):
+    out = tmp_path / "client_killed"
+    cmd = [sys.executable, "-m", "relight.cli", "generate", "--out", str(out), "--count", "12", "--res", "16",
+           "--spp", "2", "--seed", str(SEED), "--scheduler", "local:2", "--quiet"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    manifest = out / "manifest.jsonl"
+    deadline = time.time() + 120
+    while time.time() < deadline and not (manifest.exists() and manifest.stat().st_size):
+        time.sleep(0.02)
+    children = subprocess.run(["ps", "-o", "pid=", "--ppid", str(proc.pid)], capture_output=True,
+                              text=True).stdout.split()
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    deadline = time.time() + 30
+    while time.time() < deadline and any(os.path.exists(f"/proc/{c}") for c in children):
+        time.sleep(0.2)
+    assert children and not [c for c in children if os.path.exists(f"/proc/{c}")]
+    assert subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL).returncode == 0
+    _same_files(single, out, 12)
+    assert _records_by_id(out) == _records_by_id(single)
+
+
 @pytest.mark.slow
 def test_unreachable_scheduler_is_one_line_exit_2(tmp_path):
     proc = _cli("generate", "--out", str(tmp_path / "y"), "--count", "1", "--res", "16", "--spp", "2",
