@@ -52,7 +52,7 @@ class Scheduler:
 
 def parse_scheduler(text: str) -> Scheduler:
     """``local:N`` (N worker processes, 1..256) or a Dask scheduler address
-    (``tcp://host:8786``, ``host:8786``). Raises :class:`EngineError`."""
+    with its port (``tcp://host:8786``, ``host:8786``). Raises :class:`EngineError`."""
     text = (text or "").strip()
     m = LOCAL_RE.match(text)
     if m:
@@ -62,7 +62,7 @@ def parse_scheduler(text: str) -> Scheduler:
         return Scheduler(local=n)
     if text.startswith("local"):
         raise EngineError(f"expected local:N with N a positive integer, got {text!r}")
-    if not re.match(r"^([a-z]+://)?[^\s/:]+(:\d+)?$", text):
+    if not re.match(r"^([a-z]+://)?[^\s/:]+:\d{1,5}$", text):
         raise EngineError(f"expected local:N or a scheduler address like tcp://host:8786, got {text!r}")
     return Scheduler(address=text)
 
@@ -103,7 +103,7 @@ def client(scheduler: Scheduler, threads: int | None = None):
             c = distributed.Client(scheduler.address, timeout=CONNECT_TIMEOUT_S)
     except EngineError:
         raise
-    except (OSError, TimeoutError, RuntimeError) as exc:   # RuntimeError: a worker did not start
+    except (OSError, TimeoutError, RuntimeError, ValueError) as exc:   # RuntimeError: a worker did not start
         if cluster is not None:
             cluster.close()
         where = f"local:{scheduler.local}" if scheduler.local else scheduler.address

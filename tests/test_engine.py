@@ -46,7 +46,7 @@ def test_parse_scheduler():
     assert parse_scheduler("local:3").local == 3
     assert parse_scheduler("tcp://10.0.0.5:8786").address == "tcp://10.0.0.5:8786"
     assert parse_scheduler("node12:8786").address == "node12:8786"
-    for bad in ("local:0", "local:x", "local", "tcp://a b:1", "", "local:999"):
+    for bad in ("local:0", "local:x", "local", "tcp://a b:1", "", "local:999", "nan", "tcp://host"):
         with pytest.raises(EngineError):
             parse_scheduler(bad)
 

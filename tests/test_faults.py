@@ -666,7 +666,7 @@ RANGE_BAD = {
     "--max-minutes": ["-1"], "--camera-tilt": ["90", "-90", "1e308"], "--limit": ["0", "-1"],
     "--max-columns": ["0"], "--max-iters": ["0"], "--time-budget": ["0", "-5"],
     "--kappa-weight": ["-1"], "--fov": ["0", "180", "-1"], "--focal-px": ["0", "-1"],
-    "--target-rmse": ["0", "-0.1", "2"],
+    "--target-rmse": ["0", "-0.1", "2"], "--scheduler": ["local:0", "local:-1", "local:100000"],
 }
 
 
