@@ -231,8 +231,15 @@ def run_shards(c, threads_by_host: dict, out: str, cfg, seed: int, todo: list[in
                             key=f"relight-shard-{part[0]:06d}-{time.monotonic_ns()}")
                    for part in parts]
         for fut in distributed.as_completed(futures):
+            if fut.status == "error":   # the task itself raised (not a lost worker or scheduler)
+                exc = fut.exception()
+                if type(exc).__name__ == "KilledWorker":
+                    raise EngineError(_lost_message(exc))
+                raise EngineError(f"a task failed: {type(exc).__name__}: {exc}")
             on_result(fut.result())
             fut.release()
+    except EngineError:
+        raise
     except (OSError, TimeoutError, distributed.client.FutureCancelledError) as exc:
         raise EngineError(_lost_message(exc)) from None
     except Exception as exc:   # noqa: BLE001 - classify Dask's own failures

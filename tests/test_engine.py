@@ -101,6 +101,17 @@ def test_sigkill_of_a_worker_mid_run_loses_and_duplicates_nothing(tmp_path, sing
     assert _records_by_id(out) == _records_by_id(single)
 
 
+def test_a_failing_task_is_one_error_not_a_lost_scheduler(tmp_path, monkeypatch):
+    from relight import engine
+
+    def broken(*args):
+        raise OSError(28, "No space left on device")
+    monkeypatch.setattr(engine, "render_shard", broken)
+    with engine.client(engine.Scheduler(local=1)) as (c, threads_by_host):
+        with pytest.raises(EngineError, match="a task failed: OSError.*No space left"):
+            engine.run_shards(c, threads_by_host, str(tmp_path), CFG, SEED, [0, 1], lambda r: None)
+
+
 def _cli(*args):
     return subprocess.run([sys.executable, "-m", "relight.cli", *args], capture_output=True, text=True,
                           timeout=300)
