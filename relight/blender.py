@@ -98,18 +98,8 @@ def cycles_max_bounces(max_depth: int) -> int:
     return max_depth - 2
 
 
-def relative_rmse(image: np.ndarray, reference: np.ndarray) -> float:
-    """``sqrt(mean((image - reference)^2)) / mean(reference)`` over all pixels and
-    channels: the generator's noise measure (``relight.scene.noise``), kept here so the
-    bpy side needs nothing else."""
-    image = np.asarray(image, np.float64)
-    reference = np.asarray(reference, np.float64)
-    if image.shape != reference.shape:
-        raise ValueError(f"images differ in shape: {image.shape} vs {reference.shape}")
-    mean = float(np.mean(reference))
-    if not mean > 0:
-        raise ValueError("reference image is black")
-    return float(np.sqrt(np.mean((image - reference) ** 2)) / mean)
+# The generator's noise measure; relight.scene.noise needs only numpy, so the bpy side can import it.
+from relight.scene.noise import relative_rmse  # noqa: E402,F401
 
 
 def rectangle_quad(to_world: np.ndarray, uv_scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
