@@ -70,16 +70,11 @@ def register_cycles_oren_nayar(mi, dr) -> None:
         g = sin_t * (theta - 2.0 / 3.0 - sin_t * mu) + 2.0 / 3.0 * (sin_t / dr.maximum(mu, 1e-6)) * (1.0 - sin_t ** 3)
         return dr.select(mu < 1e-6, (0.5 * math.pi - 2.0 / 3.0) - mu, g)
 
-    class CyclesOrenNayar(mi.BSDF):
-        def __init__(self, props):
-            mi.BSDF.__init__(self, props)
-            self.reflectance = props.get("reflectance", mi.ScalarColor3f(0.5))
-            if not isinstance(self.reflectance, mi.Texture):
-                self.reflectance = mi.load_dict({"type": "rgb", "value": self.reflectance})
-            self.roughness = mi.Float(float(props.get("roughness", 0.5)))
-            dr.make_opaque(self.roughness)
-            self.m_flags = mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide
-            self.m_components = [self.m_flags]
+    from relight.scene import bsdf as rough_bsdf
+    rough_bsdf.register()
+
+    class CyclesOrenNayar(rough_bsdf.RoughDiffuse):
+        """relight's ``roughdiffuse`` (sampling, pdf, parameters) with Cycles' BRDF."""
 
         def _f(self, si, wo, active):
             wi = si.wi
@@ -95,35 +90,6 @@ def register_cycles_oren_nayar(mi, dr) -> None:
             multi = e_ms * (1.0 - (a * math.pi + b * g_term(cos_i))) * (1.0 - (a * math.pi + b * g_term(cos_o)))
             multi = dr.select(sigma < 1e-5, 0.0, multi)
             return rho * (a + b * s / t + multi) * cos_o
-
-        def sample(self, ctx, si, sample1, sample2, active=True):
-            active = active & (mi.Frame3f.cos_theta(si.wi) > 0.0)
-            bs = mi.BSDFSample3f()
-            bs.wo = mi.warp.square_to_cosine_hemisphere(sample2)
-            bs.pdf = mi.warp.square_to_cosine_hemisphere_pdf(bs.wo)
-            bs.eta = 1.0
-            bs.sampled_type = mi.UInt32(+mi.BSDFFlags.DiffuseReflection)
-            bs.sampled_component = mi.UInt32(0)
-            active = active & (bs.pdf > 0.0) & ctx.is_enabled(mi.BSDFFlags.DiffuseReflection)
-            return bs, dr.select(active, self._f(si, bs.wo, active) / dr.maximum(bs.pdf, 1e-20), 0.0)
-
-        def eval(self, ctx, si, wo, active=True):
-            active = active & (mi.Frame3f.cos_theta(si.wi) > 0.0) & (mi.Frame3f.cos_theta(wo) > 0.0)
-            return dr.select(active & ctx.is_enabled(mi.BSDFFlags.DiffuseReflection), self._f(si, wo, active), 0.0)
-
-        def pdf(self, ctx, si, wo, active=True):
-            active = active & (mi.Frame3f.cos_theta(si.wi) > 0.0) & (mi.Frame3f.cos_theta(wo) > 0.0)
-            return dr.select(active, mi.warp.square_to_cosine_hemisphere_pdf(wo), 0.0)
-
-        def eval_pdf(self, ctx, si, wo, active=True):
-            return self.eval(ctx, si, wo, active), self.pdf(ctx, si, wo, active)
-
-        def traverse(self, callback):
-            callback.put("reflectance", self.reflectance, mi.ParamFlags.Differentiable)
-            callback.put("roughness", self.roughness, mi.ParamFlags.NonDifferentiable)
-
-        def parameters_changed(self, keys=[]):  # noqa: B006 - Mitsuba's signature
-            dr.make_opaque(self.roughness)
 
     mi.register_bsdf(EON_PLUGIN, lambda props: CyclesOrenNayar(props))
     register_cycles_oren_nayar._done = (EON_PLUGIN,)
