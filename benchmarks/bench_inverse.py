@@ -208,7 +208,7 @@ def main(argv=None) -> int:
               f"grid dir {e['direction'][0]:.2f} col {e['colour'][0]:.2f} ({g.iterations} it, {g.renders} r, "
               f"{g.seconds:.1f} s) | from net dir {e['direction'][1]:.2f} ({n.iterations} it, "
               f"{n.renders} r, {n.seconds:.1f} s)", flush=True)
-    from relight.inverse.commands import Job, write_trace_csv
+    from relight.inverse.jobs import Job, write_trace_csv
     for key, res in results.items():
         write_trace_csv(os.path.join(args.out_dir, f"inverse_{key}.trace.csv"),
                         [(Job(rec["id"], "", "", 0.0), r) for r, rec in zip(res, recs)])

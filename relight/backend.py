@@ -17,16 +17,13 @@ import glob
 import os
 import re
 import sys
+from relight.errors import BackendError
 
 MIN_LLVM_MAJOR = 17
 INSTALL_HINT = ("install Debian's libllvm19 (apt-get install libllvm19) or the pip wheel "
                 "karellen-llvm-core, or point DRJIT_LIBLLVM_PATH at a libLLVM >= 17")
 
 _state: dict = {}
-
-
-class BackendError(RuntimeError):
-    """The rendering backend cannot be used on this machine (one-line reason)."""
 
 
 def _llvm_version_of(path: str) -> tuple[int, int, int] | None:

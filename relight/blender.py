@@ -38,6 +38,7 @@ import numpy as np
 
 from relight import frames
 from relight.scene.spec import SceneSpec
+from relight.errors import BlenderError
 
 BLENDER_VENV_ENV = "RELIGHT_BLENDER_PYTHON"     # python of an environment with bpy
 DEFAULT_BLENDER_VENV = os.path.join("~", "relight-bpy-venv")  # scripts/setup_blender.sh
@@ -52,10 +53,6 @@ DIFFERENCES = (
     "Fujii's Oren-Nayar for roughness > 0; relight's roughdiffuse (like Cycles <= 4.2) has "
     "only the single-scattering term, so rough bright objects are brighter in Cycles.",
 )
-
-
-class BlenderError(RuntimeError):
-    """bpy is missing or a scene cannot be expressed in Cycles (one-line reason)."""
 
 
 # --------------------------------------------------------------------------- units (pure)

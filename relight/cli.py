@@ -14,15 +14,16 @@ import importlib
 import os
 import sys
 
-# Modules that contribute subcommands (each has add_commands(subparsers)).
+# The command modules, in --help order; each has add_commands(subparsers). They sit on
+# top of the library: a command parses arguments and calls one library function.
 COMMAND_MODULES = [
-    "relight.commands.data",
-    "relight.commands.demo",
-    "relight.commands.probe",
-    "relight.net.commands",
-    "relight.verify.commands",
-    "relight.inverse.commands",
-    "relight.commands.blender",
+    "relight.commands.data",       # generate, render
+    "relight.commands.net",        # train, evaluate, predict
+    "relight.commands.verify",     # compare, figure
+    "relight.commands.inverse",    # invert, baseline
+    "relight.commands.probe",      # probe
+    "relight.commands.blender",    # export-blender
+    "relight.commands.demo",       # demo
 ]
 
 EXIT_USAGE = 2
@@ -43,36 +44,16 @@ def build_parser() -> argparse.ArgumentParser:
                         help="Dr.Jit render threads (default: all cores)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
-    for name in COMMAND_MODULES:
-        try:
-            module = importlib.import_module(name)
-        except ModuleNotFoundError as exc:
-            if exc.name == name:  # subsystem not installed in this build
-                continue
-            raise
-        module.add_commands(sub)
+    for name in COMMAND_MODULES:   # a module that fails to import is a broken install: let it raise
+        importlib.import_module(name).add_commands(sub)
     return parser
 
 
 def user_errors() -> tuple[type, ...]:
-    """Exception types that mean 'bad input' (one line, exit 2) rather than a bug."""
-    from relight.backend import BackendError
-    from relight.dataset import DatasetError
-    from relight.fileio import OutputError
-    from relight.render import ImageError
-    from relight.scene.sampling import ConfigError
-    from relight.scene.spec import SceneFileError
-    errors = [BackendError, DatasetError, ImageError, ConfigError, SceneFileError, OutputError,
-              FileNotFoundError, PermissionError, IsADirectoryError, NotADirectoryError]
-    for extra in ("relight.predictions:PredictionsError", "relight.net.io:ModelFileError",
-                  "relight.probes:ProbeError", "relight.probe_geometry:ProbeError",
-                  "relight.blender:BlenderError", "relight.engine:EngineError"):
-        mod, _, cls = extra.partition(":")
-        try:
-            errors.append(getattr(importlib.import_module(mod), cls))
-        except (ImportError, AttributeError):
-            pass
-    return tuple(errors)
+    """Exception types that mean 'bad input' (one line, exit 2) rather than a bug: the
+    :mod:`relight.errors` family and the OS's file errors."""
+    from relight.errors import RelightError
+    return (RelightError, FileNotFoundError, PermissionError, IsADirectoryError, NotADirectoryError)
 
 
 def _quiet_libraries() -> None:

@@ -41,6 +41,7 @@ from relight import frames
 from relight.fileio import LOCK_NAME, FolderLock, remove_temps, write_bytes, write_json
 from relight.scene.sampling import GeneratorConfig, sample_scene, split_of
 from relight.scene.spec import SceneSpec
+from relight.errors import DatasetError
 
 DATASET_FORMAT = "relight.dataset/v1"
 MANIFEST = "manifest.jsonl"
@@ -48,10 +49,7 @@ CARD = "dataset.json"
 MAX_COUNT = 1_000_000      # ids are six digits
 SEED_LIMIT = 2 ** 32       # dataset seeds are in [0, 2**32)
 SPLITS = ("train", "val", "test")
-
-
-class DatasetError(ValueError):
-    """A dataset folder is missing, inconsistent or was made with other settings."""
+SPLIT_CHOICES = SPLITS + ("all",)   # what a reader may ask for: one split or all of them
 
 
 @dataclass
@@ -180,6 +178,13 @@ def check_record(rec, where: str) -> None:
     y = rec.get("y")
     if not (isinstance(y, list) and len(y) == frames.Y_SIZE and all(_finite_number(v) for v in y)):
         raise DatasetError(f"{where}: 'y' must be a list of {frames.Y_SIZE} finite numbers")
+
+
+def split_records(records: list[dict], split: str) -> list[dict]:
+    """Records of one split (``"train"``, ``"val"``, ``"test"``) or all of them (``"all"``)."""
+    if split not in SPLIT_CHOICES:
+        raise DatasetError(f"unknown split {split!r}; expected one of {', '.join(SPLIT_CHOICES)}")
+    return list(records) if split == "all" else [r for r in records if r.get("split") == split]
 
 
 def read_card(dataset_dir: str | os.PathLike) -> dict:

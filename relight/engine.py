@@ -28,15 +28,12 @@ import threading
 import time
 from collections import Counter
 from dataclasses import dataclass, field
+from relight.errors import EngineError
 
 LOCAL_RE = re.compile(r"^local:(\d+)$")
 CONNECT_TIMEOUT_S = 20
 MAX_SHARD = 8          # images per task: small enough to balance load and to lose little to a kill
 SHARDS_PER_WORKER = 4  # aim for at least this many tasks per worker
-
-
-class EngineError(RuntimeError):
-    """The distributed engine cannot start or lost its scheduler (one-line reason)."""
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,7 @@ import re
 import secrets
 import shutil
 import sys
+from relight.errors import OutputError
 
 TEMP_MARK = ".relight-tmp-"
 LOCK_NAME = ".relight.lock"
@@ -29,11 +30,6 @@ LOCK_NAME = ".relight.lock"
 DATASET_OWNED = ("manifest.jsonl", "dataset.json", "images", "exr", "scenes", LOCK_NAME)
 # Temporary names of this module, and the older ``NAME.tmpPID[.ext]`` / ``NAME.tmp`` forms.
 _TEMP_RE = re.compile(r"\.relight-tmp-(\d+)-[0-9a-f]+|\.tmp(\d*)(?:\.[A-Za-z0-9]+)?$")
-
-
-class OutputError(ValueError):
-    """An output cannot be written: it is one of the inputs, a folder where a file is
-    expected, or a folder another relight process is writing (one-line reason)."""
 
 
 # --- names ---------------------------------------------------------------------------
@@ -189,6 +185,31 @@ def atomic_write(path: str | os.PathLike, writer, inputs=()) -> None:
         if exc.filename in (tmp, path) or getattr(exc, "filename2", None) in (tmp, path):
             raise _rename_error(exc, tmp, path) from None
         raise
+    except BaseException:
+        _discard(tmp)
+        _remove_empty(made)
+        raise
+
+
+def atomic_folder(path: str | os.PathLike, writer) -> None:
+    """Write the folder ``path`` atomically: ``writer(tmp_dir)`` fills a temporary folder
+    beside it, which then takes the place of ``path`` (an older folder there is swapped
+    out, then deleted). On any failure the temporary folder is removed and ``path`` is
+    as before. The caller checks first that ``path`` may be replaced."""
+    path = os.path.abspath(os.fspath(path))
+    parent = os.path.dirname(path)
+    made = _makedirs(parent)
+    tmp = temp_path(path)
+    os.mkdir(tmp)
+    try:
+        writer(tmp)
+        if os.path.lexists(path):
+            old = temp_path(path)
+            os.replace(path, old)
+            os.replace(tmp, path)
+            _discard(old)
+        else:
+            os.replace(tmp, path)
     except BaseException:
         _discard(tmp)
         _remove_empty(made)

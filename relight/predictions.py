@@ -18,12 +18,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from relight import frames
+from relight.errors import PredictionsError
 
 PREDICTIONS_FORMAT = "relight.predictions/v1"
-
-
-class PredictionsError(ValueError):
-    """A predictions file or entry is malformed (one-line reason naming the entry)."""
 
 
 @dataclass(frozen=True)
@@ -218,3 +215,19 @@ def write_predictions(path: str | os.PathLike, entries: list[dict], dataset: str
         transaction.stage(path, write)
     else:
         atomic_write(path, write, inputs)
+
+
+def entry_for_image(predictions, image_path: str, wanted_id: str | None):
+    """The entry to draw: ``wanted_id``, the only entry, or the one named like the image."""
+    if wanted_id is not None:
+        found = [p for p in predictions if p.id == wanted_id]
+        if not found:
+            raise PredictionsError(f"no entry with id {wanted_id!r}")
+        return found[0]
+    if len(predictions) == 1:
+        return predictions[0]
+    stem = os.path.splitext(os.path.basename(image_path))[0]
+    found = [p for p in predictions if p.id == stem]
+    if not found:
+        raise PredictionsError(f"{len(predictions)} entries and none has id {stem!r}; choose one with --id")
+    return found[0]

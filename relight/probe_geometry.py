@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import ndimage, optimize
+from relight.errors import ProbeError
 
 HIGHLIGHT_FRACTION = 0.5       # highlight candidates: pixels >= half the brightest sphere pixel
 TIE_FRACTION = 0.98            # candidates within 2% of the peak count as equally bright (clipping)
@@ -42,10 +43,6 @@ LIT_FRACTION = (0.25, 0.95)    # diffuse pixels used for the shading fit, as fra
 DIFFUSE_RIM_FRACTION = 0.9     # diffuse fit: normals within 0.9 of the radius (as relight.probes)
 ORTHO_DEPTH = 1.0e4            # z of an orthographic sphere's centre (any value works)
 OUTLINE_LOSS_SCALE_PX = 0.5    # robust outline fit: residuals beyond ~0.5 px count less
-
-
-class ProbeError(ValueError):
-    """A probe image, circle or mask cannot be used (one-line reason)."""
 
 
 @dataclass(frozen=True)

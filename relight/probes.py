@@ -18,14 +18,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from relight import frames
+from relight.errors import ProbeError
 
 HIGHLIGHT_FRACTION = 0.98    # pixels at >= 98% of the chrome sphere's peak form the highlight
 LIT_FRACTION = (0.25, 0.95)  # diffuse pixels used for the shading fit, as fractions of the peak
 RIM_MARGIN = 0.9             # ignore the outer 10% of the radius (blurred, grazing normals)
-
-
-class ProbeError(ValueError):
-    """A probe image or mask cannot be used (one-line reason)."""
 
 
 @dataclass(frozen=True)

@@ -14,10 +14,7 @@ import numpy as np
 
 from relight import colour
 from relight.fileio import atomic_write, quiet_library_output
-
-
-class ImageError(ValueError):
-    """An image file cannot be read or written (one-line reason)."""
+from relight.errors import ImageError
 
 
 def write_exr(path: str | os.PathLike, image: np.ndarray, inputs=()) -> None:

@@ -173,10 +173,9 @@ def main() -> int:
     args = ap.parse_args()
     meta = ship(args.run, args.train_data)
     eval_out = args.eval_out or args.test_data.rstrip("/") + "-eval"
-    from relight.cli import main as relight_main
-    code = relight_main(["evaluate", "--data", args.test_data, "--split", "all", "--out", eval_out])
-    if code:
-        return code
+    from relight.net.evaluate import evaluate
+    from relight.net.predict import load_model
+    evaluate(load_model(None), args.test_data, eval_out, split="all", model_name="shipped model")
     notes = open(args.notes).read().strip() if args.notes else "(no notes given)"
     print(write_card(meta, eval_out, args.test_data, notes))
     return 0

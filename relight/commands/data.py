@@ -74,11 +74,6 @@ def cmd_generate(args) -> int:
     return 0
 
 
-def ValueError_(msg):  # noqa: N802 - small helper raising the CLI's config error type
-    from relight.scene.sampling import ConfigError
-    return ConfigError(msg)
-
-
 def cmd_render(args) -> int:
     import dataclasses
 

@@ -1,9 +1,10 @@
 """``relight demo``: the main job end to end on a small built-in default.
 
-1. render a small SID2-style dataset with Mitsuba 3 (``relight generate``);
+1. render a small SID2-style dataset with Mitsuba 3 (what ``relight generate`` does);
 2. predict its lights with the shipped network (``relight evaluate``);
 3. re-render every scene under the predicted light and write the paper's Figure 3
    panels and tables (``relight compare``).
+It calls the library functions behind those commands.
 Re-running resumes the dataset and rewrites the reports.
 """
 from __future__ import annotations
@@ -24,21 +25,33 @@ def add_commands(sub) -> None:
 
 
 def cmd_demo(args) -> int:
-    from relight.cli import main
+    from relight import metrics
+    from relight.dataset import generate
+    from relight.fileio import check_folder_target, check_outputs
+    from relight.net.evaluate import evaluate
+    from relight.net.predict import load_model
+    from relight.scene.sampling import GeneratorConfig
+    from relight.verify.compare import compare_predictions
+    from relight.verify.report import check_out, write_report
     data = os.path.join(args.out, "dataset")
-    steps = [
-        ["generate", "--count", str(args.count), "--res", str(args.res), "--spp", str(args.spp),
-         "--out", data],
-        ["evaluate", "--data", data, "--split", "all", "--out", os.path.join(args.out, "evaluation")],
-        ["compare", os.path.join(args.out, "evaluation", "predictions.json"), "--data", data,
-         "--out", os.path.join(args.out, "compare")],
-    ]
-    for argv in steps:
-        print(f"\n$ relight {' '.join(argv)}", flush=True)
-        code = main(argv)
-        if code:
-            return code
+    evaluation = os.path.join(args.out, "evaluation")
+    report = os.path.abspath(os.path.join(args.out, "compare"))
+    for folder in (evaluation, report):
+        check_outputs([folder], [data], replaces_folder=True)
+        check_folder_target(folder)
+    check_out(report)
+
+    print(f"\n1/3 render {args.count} SID2-style images ({args.res} px, {args.spp} spp) -> {data}", flush=True)
+    generate(data, args.count, seed=0, cfg=GeneratorConfig(res=args.res, spp=args.spp))
+    print(f"\n2/3 predict their lights with the shipped network -> {evaluation}", flush=True)
+    tables = evaluate(load_model(None), data, evaluation, split="all", model_name="shipped model")
+    print(metrics.format_tables({"overall": tables["overall"]}).rstrip())
+    print(f"\n3/3 re-render every scene under its predicted light -> {report}", flush=True)
+    predictions = os.path.join(evaluation, "predictions.json")
+    comparison = compare_predictions(predictions, data_dir=data)
+    write_report(comparison, report, {"command": "demo", "predictions": os.path.abspath(predictions),
+                                      "data": os.path.abspath(data), "out": report})
     print(f"\nimages:  {os.path.join(data, 'images')}")
-    print(f"tables:  {os.path.join(args.out, 'evaluation')}")
-    print(f"figure:  {os.path.join(args.out, 'compare', 'figure3.png')}")
+    print(f"tables:  {evaluation}")
+    print(f"figure:  {os.path.join(report, 'figure3.png')}  (open {os.path.join(report, 'index.html')})")
     return 0

@@ -5,5 +5,7 @@
   (finite-difference Levenberg-Marquardt on pan/tilt, closed-form colour).
 * :mod:`relight.inverse.colour_baselines`: classical colour constancy (Gray World,
   White Patch, Shades of Gray, Gray Edge) from the pixels alone, colour only.
-* :mod:`relight.inverse.commands`: ``relight invert`` and ``relight baseline``.
+* :mod:`relight.inverse.ad`: automatic-differentiation Jacobians with shadow-edge terms.
+* :mod:`relight.inverse.jobs`: batches of images to invert (dataset split or one
+  scene), their starting directions, and the trace file.
 """

@@ -60,10 +60,7 @@ import numpy as np
 from relight import frames
 from relight.scene.sampling import ConfigError
 from relight.scene.spec import SceneSpec
-
-
-class InverseError(ConfigError):
-    """Inverse rendering cannot run on these inputs (one-line reason)."""
+from relight.errors import InverseError
 
 
 @dataclass(frozen=True)

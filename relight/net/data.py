@@ -20,9 +20,9 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
-from relight.dataset import DatasetError, read_manifest, safe_join
+from relight.dataset import SPLIT_CHOICES, DatasetError, read_manifest, safe_join, split_records
 
-SPLITS = ("train", "val", "test", "all")
+SPLITS = SPLIT_CHOICES   # one split or "all"
 
 
 def prepare_srgb8(image_srgb8: np.ndarray, res: int) -> torch.Tensor:
@@ -54,13 +54,6 @@ def flip_y(y):
 def flip_image(x: torch.Tensor) -> torch.Tensor:
     """Mirror a ``(..., H, W)`` image left-right."""
     return torch.flip(x, dims=(-1,))
-
-
-def split_records(records: list[dict], split: str) -> list[dict]:
-    """Records of one split ("train", "val", "test") or all of them ("all")."""
-    if split not in SPLITS:
-        raise DatasetError(f"unknown split {split!r}; expected one of {', '.join(SPLITS)}")
-    return list(records) if split == "all" else [r for r in records if r.get("split") == split]
 
 
 def _read_png_srgb8(path: str) -> np.ndarray:

@@ -15,14 +15,11 @@ import os
 import torch
 
 from relight.net.model import ARCHES, LightNet, NetConfig
+from relight.errors import ModelFileError
 
 MODEL_FORMAT = "relight.model/v1"
 MODELS_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "models")
 SHIPPED_MODEL = os.path.join(MODELS_DIR, "sid2_small.safetensors")
-
-
-class ModelFileError(ValueError):
-    """A model file is missing, unreadable or not a relight model (one-line reason)."""
 
 
 def save_model(path: str | os.PathLike, model: LightNet, info: dict | None = None) -> None:

@@ -37,6 +37,7 @@ import numpy as np
 import torch
 
 from relight.dataset import DatasetError
+from relight.errors import TrainingError
 from relight.fileio import FolderLock, atomic_write, write_json
 from relight.net.data import LightDataset
 from relight.net.evaluate import errors_from_y, run_model
@@ -103,20 +104,20 @@ class TrainConfig:
         for name in ("epochs", "batch_size", "res", "threads"):
             v = getattr(self, name)
             if not isinstance(v, int) or v < 1:
-                raise DatasetError(f"{name} must be a positive integer, got {v!r}")
+                raise TrainingError(f"{name} must be a positive integer, got {v!r}")
         if self.workers < 0 or self.plateau_patience < 0:
-            raise DatasetError("workers and plateau_patience must be >= 0")
+            raise TrainingError("workers and plateau_patience must be >= 0")
         if not (isinstance(self.seed, int) and 0 <= self.seed < 2 ** 32):
-            raise DatasetError(f"seed must be an integer in [0, 2**32), got {self.seed!r}")
+            raise TrainingError(f"seed must be an integer in [0, 2**32), got {self.seed!r}")
         if self.max_minutes is not None and not (0 <= self.max_minutes < math.inf):
-            raise DatasetError(f"max_minutes must be a finite number >= 0, got {self.max_minutes!r}")
+            raise TrainingError(f"max_minutes must be a finite number >= 0, got {self.max_minutes!r}")
         w = self.loss_weights
         if max(w.pan, w.tilt, w.colour) <= 0:
-            raise DatasetError("loss weights must not all be zero")
+            raise TrainingError("loss weights must not all be zero")
         if self.arch not in ARCHES:
-            raise DatasetError(f"arch must be one of {', '.join(ARCHES)}, got {self.arch!r}")
+            raise TrainingError(f"arch must be one of {', '.join(ARCHES)}, got {self.arch!r}")
         if not (isinstance(self.lr, float) and 0 < self.lr < 1):
-            raise DatasetError(f"lr must be in (0, 1), got {self.lr!r}")
+            raise TrainingError(f"lr must be in (0, 1), got {self.lr!r}")
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -125,7 +126,7 @@ class TrainConfig:
 def _check_resume_compatible(saved: dict, cfg: TrainConfig) -> None:
     for key in ("res", "batch_size", "seed", "width", "flip", "arch", "kappa_detach"):
         if key in saved and saved[key] != getattr(cfg, key):
-            raise DatasetError(f"cannot resume: {key} was {saved[key]!r} in this run, now {getattr(cfg, key)!r}")
+            raise TrainingError(f"cannot resume: {key} was {saved[key]!r} in this run, now {getattr(cfg, key)!r}")
 
 
 def net_config(cfg: TrainConfig, saved: dict | None = None) -> NetConfig:

@@ -24,10 +24,7 @@ from relight import colour
 from relight.scene import albedo, noise, shapes, textures
 from relight.scene.spec import (SAMPLERS, CameraSpec, LightSpec, ObjectSpec, RenderSpec, RoomSpec,
                                 SceneSpec)
-
-
-class ConfigError(ValueError):
-    """A generator configuration value is out of range or unknown."""
+from relight.errors import ConfigError
 
 
 @dataclass(frozen=True)

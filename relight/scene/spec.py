@@ -19,12 +19,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from relight import frames
+from relight.errors import SceneFileError
 
 SCENE_FORMAT = "relight.scene/v1"
-
-
-class SceneFileError(ValueError):
-    """A scene file is unreadable, of an unknown version or inconsistent."""
 
 
 def _finite(name: str, *values: float) -> None:

@@ -119,7 +119,7 @@ def resolve_dataset_dir(predictions_path: str, data_dir: str | None, file_datase
     return os.path.abspath(beside if os.path.isdir(beside) else file_dataset)
 
 
-def _gt_light(record: dict) -> Light:
+def gt_light(record: dict) -> Light:
     light = record["light"]
     rgb = np.asarray(light["rgb"], dtype=np.float64)
     rgb = rgb / np.linalg.norm(rgb)
@@ -145,7 +145,7 @@ def prepare(dataset_dir: str, record: dict, prediction: Prediction) -> Task:
     if not os.path.isfile(exr_path):
         raise ImageError(f"original image not found: {record['exr']}")
     try:
-        gt = _gt_light(record)
+        gt = gt_light(record)
     except (KeyError, TypeError, ValueError) as exc:
         raise DatasetError(f"manifest record lacks a valid light ({exc})") from None
     # colour-only predictions (colour-constancy baselines) keep the true direction
@@ -263,7 +263,7 @@ def moved_light_predictions(dataset_dir: str | os.PathLike, spread_deg: float = 
     rng = np.random.default_rng(seed)
     out = []
     for rec in read_manifest(dataset_dir)[:limit]:
-        gt = _gt_light(rec)
+        gt = gt_light(rec)
         d_pan, d_tilt = rng.uniform(-spread_deg, spread_deg, 2)
         rgb = np.asarray(gt.rgb) * (1.0 + rng.uniform(-colour_spread, colour_spread, 3))
         pan, tilt = frames.fold_over_zenith(gt.pan_rel_deg + d_pan, gt.tilt_deg + d_tilt)

@@ -21,12 +21,11 @@ import html
 import json
 import math
 import os
-import shutil
-import tempfile
 
 import numpy as np
 
 from relight import metrics
+from relight.fileio import atomic_folder
 from relight.verify import figures
 from relight.verify.compare import IMAGE_METRICS, STRENGTH_NOTE, CompareError, Comparison
 
@@ -257,12 +256,10 @@ def write_report(comparison: Comparison, out_dir: str | os.PathLike, settings: d
     from tqdm import tqdm
     out_dir = os.path.abspath(os.fspath(out_dir))
     check_out(out_dir)
-    parent = os.path.dirname(out_dir)
-    os.makedirs(parent, exist_ok=True)
-    tmp = tempfile.mkdtemp(prefix=f".{os.path.basename(out_dir)}.tmp", dir=parent)
-    try:
+    summary = summarise(comparison)
+
+    def write(tmp):
         items = comparison.items
-        summary = summarise(comparison)
         rows = [it.row() for it in items]
         os.makedirs(os.path.join(tmp, "panels"))
         names = []
@@ -285,14 +282,6 @@ def write_report(comparison: Comparison, out_dir: str | os.PathLike, settings: d
         _write_json(os.path.join(tmp, "settings.json"), {"format": REPORT_FORMAT, **settings})
         with open(os.path.join(tmp, "index.html"), "w") as f:
             f.write(_index_html(_clean(summary), tables_md, rows, names))
-        if os.path.lexists(out_dir):  # an older report: swap it out, then delete it
-            old = tempfile.mkdtemp(prefix=f".{os.path.basename(out_dir)}.old", dir=parent)
-            os.replace(out_dir, os.path.join(old, "r"))
-            os.replace(tmp, out_dir)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(tmp, out_dir)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+
+    atomic_folder(out_dir, write)
     return summary

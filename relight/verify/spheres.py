@@ -17,6 +17,7 @@ colour, camera pose) through ``mi.traverse``.
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 
@@ -158,3 +159,65 @@ def overlay_pole(image: np.ndarray, inset_rgba: np.ndarray, margin_px: int = 4) 
     region = out[y0:y0 + size, x0:x0 + size]
     region[...] = inset[..., :3] * alpha + region * (1.0 - alpha)
     return out
+
+
+def gt_from_entry(pred) -> tuple[float, float, np.ndarray] | None:
+    """Ground truth from an entry's gt_pan_deg / gt_tilt_deg / gt_rgb fields, if present."""
+    from relight.predictions import PredictionsError
+    keys = ("gt_pan_deg", "gt_tilt_deg", "gt_rgb")
+    present = [k for k in keys if k in pred.extra]
+    if not present:
+        return None
+    try:
+        pan, tilt = float(pred.extra["gt_pan_deg"]), float(pred.extra["gt_tilt_deg"])
+        rgb = np.asarray(pred.extra["gt_rgb"], dtype=np.float64)
+        ok = math.isfinite(pan) and math.isfinite(tilt) and rgb.shape == (3,) \
+            and np.isfinite(rgb).all() and (rgb >= 0).all() and rgb.max() > 0
+    except (KeyError, TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise PredictionsError(f"entry {pred.id!r}: gt_pan_deg, gt_tilt_deg and gt_rgb must all be "
+                               "given as finite numbers (rgb non-negative, non-zero)")
+    return pan, tilt, rgb / np.linalg.norm(rgb)
+
+
+def sphere_rows(predictions_path: str, data_dir: str | None, camera_tilt_deg: float,
+                res: int, spp: int, limit: int | None = None) -> list[dict]:
+    """Rows for :func:`relight.verify.figures.save_spheres_figure` (renders the spheres)."""
+    from relight import metrics
+    from relight.dataset import read_manifest, safe_join
+    from relight.predictions import PredictionsError, read_predictions
+    from relight.render import read_exr, read_image
+    from relight.verify.compare import gt_light, resolve_dataset_dir
+    pfile = read_predictions(predictions_path)
+    records, dataset_dir = {}, None
+    if data_dir or pfile.dataset:
+        dataset_dir = resolve_dataset_dir(predictions_path, data_dir, pfile.dataset)
+        records = {r.get("id"): r for r in read_manifest(dataset_dir)}
+    rows = []
+    for pred in pfile.predictions[:limit]:
+        record = records.get(pred.id)
+        image = None
+        if record is not None:
+            cam_tilt = float(record["camera"]["tilt_deg"])
+            g = gt_light(record)
+            gt = (g.pan_rel_deg, g.tilt_deg, np.asarray(g.rgb))
+            image = read_exr(safe_join(dataset_dir, record["exr"]))
+        else:
+            if dataset_dir is not None and "gt_pan_deg" not in pred.extra:
+                raise PredictionsError(f"{predictions_path}: entry {pred.id!r}: id not in the manifest "
+                                       f"of {dataset_dir} and no gt_* fields")
+            cam_tilt = float(pred.extra.get("camera_tilt_deg", camera_tilt_deg))
+            gt = gt_from_entry(pred)
+            if isinstance(pred.extra.get("image"), str):
+                base = os.path.dirname(os.path.abspath(predictions_path))
+                image = read_image(os.path.join(base, pred.extra["image"]))[0]
+        pan, tilt, rgb = pred.resolve(cam_tilt)
+        pred_sph = np.concatenate(sphere_pair(pan, tilt, rgb, cam_tilt, res, spp), axis=1)
+        gt_sph, errors = None, None
+        if gt is not None:
+            gt_sph = np.concatenate(sphere_pair(*gt, cam_tilt, res, spp), axis=1)
+            errors = {k: float(v) for k, v in metrics.light_errors(pan, tilt, rgb, *gt).items()}
+        rows.append({"id": pred.id, "image": image, "gt_spheres": gt_sph, "pred_spheres": pred_sph,
+                     "errors": errors})
+    return rows

@@ -2,18 +2,12 @@
 :mod:`relight.verify.compare`, :mod:`relight.verify.report` and :mod:`relight.verify.figures`."""
 from __future__ import annotations
 
-import math
 import os
-import shutil
 import sys
-import tempfile
-
-import numpy as np
 
 from relight.commands import argtypes as at
 from relight.commands.argtypes import camera_tilt
 from relight.frames import PHOTO_CAMERA_TILT_DEG as DEFAULT_PHOTO_CAMERA_TILT_DEG
-
 
 
 def add_commands(sub) -> None:
@@ -95,88 +89,24 @@ def cmd_compare(args) -> int:
     return 0
 
 
-def _gt_from_entry(pred) -> tuple[float, float, np.ndarray] | None:
-    """Ground truth from an entry's gt_pan_deg / gt_tilt_deg / gt_rgb fields, if present."""
-    from relight.predictions import PredictionsError
-    keys = ("gt_pan_deg", "gt_tilt_deg", "gt_rgb")
-    present = [k for k in keys if k in pred.extra]
-    if not present:
-        return None
-    try:
-        pan, tilt = float(pred.extra["gt_pan_deg"]), float(pred.extra["gt_tilt_deg"])
-        rgb = np.asarray(pred.extra["gt_rgb"], dtype=np.float64)
-        ok = math.isfinite(pan) and math.isfinite(tilt) and rgb.shape == (3,) \
-            and np.isfinite(rgb).all() and (rgb >= 0).all() and rgb.max() > 0
-    except (KeyError, TypeError, ValueError):
-        ok = False
-    if not ok:
-        raise PredictionsError(f"entry {pred.id!r}: gt_pan_deg, gt_tilt_deg and gt_rgb must all be "
-                               "given as finite numbers (rgb non-negative, non-zero)")
-    return pan, tilt, rgb / np.linalg.norm(rgb)
-
-
-def sphere_rows(predictions_path: str, data_dir: str | None, camera_tilt_deg: float,
-                res: int, spp: int, limit: int | None = None) -> list[dict]:
-    """Rows for :func:`relight.verify.figures.save_spheres_figure` (renders the spheres)."""
-    from relight import metrics
-    from relight.dataset import read_manifest, safe_join
-    from relight.predictions import PredictionsError, read_predictions
-    from relight.render import read_exr, read_image
-    from relight.verify import spheres
-    from relight.verify.compare import _gt_light, resolve_dataset_dir
-    pfile = read_predictions(predictions_path)
-    records, dataset_dir = {}, None
-    if data_dir or pfile.dataset:
-        dataset_dir = resolve_dataset_dir(predictions_path, data_dir, pfile.dataset)
-        records = {r.get("id"): r for r in read_manifest(dataset_dir)}
-    rows = []
-    for pred in pfile.predictions[:limit]:
-        record = records.get(pred.id)
-        image = None
-        if record is not None:
-            cam_tilt = float(record["camera"]["tilt_deg"])
-            g = _gt_light(record)
-            gt = (g.pan_rel_deg, g.tilt_deg, np.asarray(g.rgb))
-            image = read_exr(safe_join(dataset_dir, record["exr"]))
-        else:
-            if dataset_dir is not None and "gt_pan_deg" not in pred.extra:
-                raise PredictionsError(f"{predictions_path}: entry {pred.id!r}: id not in the manifest "
-                                       f"of {dataset_dir} and no gt_* fields")
-            cam_tilt = float(pred.extra.get("camera_tilt_deg", camera_tilt_deg))
-            gt = _gt_from_entry(pred)
-            if isinstance(pred.extra.get("image"), str):
-                base = os.path.dirname(os.path.abspath(predictions_path))
-                image = read_image(os.path.join(base, pred.extra["image"]))[0]
-        pan, tilt, rgb = pred.resolve(cam_tilt)
-        pred_sph = np.concatenate(spheres.sphere_pair(pan, tilt, rgb, cam_tilt, res, spp), axis=1)
-        gt_sph, errors = None, None
-        if gt is not None:
-            gt_sph = np.concatenate(spheres.sphere_pair(*gt, cam_tilt, res, spp), axis=1)
-            errors = {k: float(v) for k, v in metrics.light_errors(pan, tilt, rgb, *gt).items()}
-        rows.append({"id": pred.id, "image": image, "gt_spheres": gt_sph, "pred_spheres": pred_sph,
-                     "errors": errors})
-    return rows
-
-
 def cmd_spheres(args) -> int:
     import json
 
     from relight import backend
     from relight.verify import figures
     backend.init()
-    from relight.fileio import check_folder_target, check_outputs
+    from relight.fileio import OutputError, atomic_folder, check_folder_target, check_outputs
     out = os.path.abspath(args.out)
     if os.path.lexists(out) and not os.path.isdir(out):
-        raise FileExistsError_(f"--out {out} exists and is not a folder")
+        raise OutputError(f"--out {out} exists and is not a folder")
     check_outputs([out], [args.predictions, args.data], replaces_folder=True)
     check_folder_target(out)
     if os.path.isdir(out) and os.listdir(out) and not _is_spheres_folder(out):
-        raise FileExistsError_(f"--out {out} exists and is not a spheres figure folder; choose another --out")
+        raise OutputError(f"--out {out} exists and is not a spheres figure folder; choose another --out")
+    from relight.verify.spheres import sphere_rows
     rows = sphere_rows(args.predictions, args.data, args.camera_tilt, args.res, args.spp, args.limit)
-    parent = os.path.dirname(out)
-    os.makedirs(parent, exist_ok=True)
-    tmp = tempfile.mkdtemp(prefix=f".{os.path.basename(out)}.tmp", dir=parent)
-    try:
+
+    def write(tmp):
         for page, start in enumerate(range(0, len(rows), figures.MAX_COLUMNS)):
             chunk = rows[start:start + figures.MAX_COLUMNS]
             for ext in ("png", "pdf"):
@@ -186,12 +116,8 @@ def cmd_spheres(args) -> int:
                        "data": args.data, "camera_tilt_deg": args.camera_tilt, "res": args.res,
                        "spp": args.spp, "limit": args.limit,
                        "errors_deg": {r["id"]: r["errors"] for r in rows}}, f, indent=1)
-        if os.path.isdir(out):
-            shutil.rmtree(out)
-        os.replace(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+
+    atomic_folder(out, write)
     print(f"{out}: spheres for {len(rows)} images")
     return 0
 
@@ -205,31 +131,9 @@ def _is_spheres_folder(path: str) -> bool:
         return False
 
 
-def FileExistsError_(msg):  # noqa: N802 - a user error the CLI reports in one line
-    from relight.predictions import PredictionsError
-    return PredictionsError(msg)
-
-
-def pick_entry(predictions, image_path: str, wanted_id: str | None):
-    """The entry to draw: ``wanted_id``, the only entry, or the one named like the image."""
-    from relight.predictions import PredictionsError
-    if wanted_id is not None:
-        found = [p for p in predictions if p.id == wanted_id]
-        if not found:
-            raise PredictionsError(f"no entry with id {wanted_id!r}")
-        return found[0]
-    if len(predictions) == 1:
-        return predictions[0]
-    stem = os.path.splitext(os.path.basename(image_path))[0]
-    found = [p for p in predictions if p.id == stem]
-    if not found:
-        raise PredictionsError(f"{len(predictions)} entries and none has id {stem!r}; choose one with --id")
-    return found[0]
-
-
 def cmd_pole(args) -> int:
     from relight import backend
-    from relight.predictions import read_predictions
+    from relight.predictions import entry_for_image, read_predictions
     from relight.fileio import check_file_target, check_outputs
     from relight.render import ImageError, read_image, write_png
     from relight.verify.figures import pole_overlay
@@ -238,7 +142,7 @@ def cmd_pole(args) -> int:
         raise ImageError(f"--out must end in .png, got {args.out!r}")
     check_file_target(args.out)
     image, _ = read_image(args.image)
-    pred = pick_entry(read_predictions(args.predictions).predictions, args.image, args.id)
+    pred = entry_for_image(read_predictions(args.predictions).predictions, args.image, args.id)
     pan, tilt, rgb = pred.resolve(args.camera_tilt)
     backend.init()
     write_png(args.out, pole_overlay(image, pan, tilt, rgb, args.camera_tilt))
