@@ -8,7 +8,7 @@ through the same path as the command line. Methods:
 - circle given: the circle closest to the true outline (what a person would mark),
   refined on the image's edges, perspective camera with the true field of view;
 - automatic: no circle, the spheres found by the procedure;
-- orthographic + mask (the previous procedure, relight.probes): for comparison.
+- orthographic + mask (the previous procedure, relight.probe.ortho): for comparison.
 
     .venv/bin/python benchmarks/bench_probe.py [--count 12] [--spp 64] [--keep DIR]
 """
@@ -35,17 +35,17 @@ def _angle_deg(a, b) -> float:
 
 
 def _probe(path: str, **kw):
-    from relight.probe_run import ProbeConfig, run_probe
+    from relight.probe.run import ProbeConfig, run_probe
     return run_probe(ProbeConfig(chrome=path, **kw))
 
 
 def _renders(args, folder: str, rows: list, qa_dir: str | None) -> None:
     from tqdm import tqdm
 
-    from relight import probe_geometry as geom
-    from relight import probes
-    from relight.probe_geometry import ProbeError
-    from relight.probe_run import write_qa
+    from relight.probe import geometry as geom
+    from relight.probe import ortho as probes
+    from relight.probe.geometry import ProbeError
+    from relight.probe.run import write_qa
     from relight.render import write_png
     from relight.verify import probe_scenes
 
@@ -69,7 +69,7 @@ def _renders(args, folder: str, rows: list, qa_dir: str | None) -> None:
             err = 180.0
         rows.append((f"{tag}, automatic", light, err))
         # the previous procedure: orthographic view, the true sphere's pixel mask
-        from relight.probe_detect import load_image
+        from relight.probe.detect import load_image
         image = load_image(path)[0]
         cam = scene.camera
         ys, xs = np.mgrid[0:cam.height, 0:cam.width] + 0.5
@@ -79,10 +79,10 @@ def _renders(args, folder: str, rows: list, qa_dir: str | None) -> None:
 
 
 def _psm(rows: list, qa_dir: str | None) -> None:
-    from relight import probes
-    from relight.probe_detect import load_image, load_mask
-    from relight.probe_geometry import ProbeError
-    from relight.probe_run import write_qa
+    from relight.probe import ortho as probes
+    from relight.probe.detect import load_image, load_mask
+    from relight.probe.geometry import ProbeError
+    from relight.probe.run import write_qa
 
     lights = np.loadtxt(os.path.join(PSM, "lights.txt"), skiprows=1)
     mask_path = os.path.join(PSM, "chrome.mask.png")

@@ -320,3 +320,11 @@ def travel_direction(to_light) -> np.ndarray:
     [-0.0, -0.0, -1.0]
     """
     return -np.asarray(to_light, dtype=np.float64)
+
+
+def camera_to_pan_tilt(to_light_cam, camera_tilt_deg: float) -> tuple[float, float]:
+    """``(pan_rel_deg, tilt_deg)`` of a camera-frame direction for a camera at pan 0 and
+    the given tilt (the conventions' world frame: pan_rel 90 = camera's right)."""
+    world = camera_to_world_vector(np.asarray(to_light_cam, np.float64), camera_tilt_deg)
+    _, pan_deg, tilt_deg = cartesian_to_spherical(world)
+    return float(pan_deg), float(tilt_deg)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from relight import probe_detect, probe_geometry as pg
+from relight.probe import detect as probe_detect, geometry as pg
 from relight.cli import main
 
 W, H, FOV_DEG = 200, 150, 50.0
@@ -174,7 +174,7 @@ def test_cli_circles_given_with_qa_overlay(small_render, tmp_path):
     predicted, _ = pg.predict_highlight(scene.camera, scene.chrome, scene.to_light)
     assert np.hypot(*(np.asarray(entry["quality"]["highlight_px"]) - predicted)) < 2 * HIGHLIGHT_PX_TOL
     assert np.std(entry["rgb"]) < 0.02                    # a white light on a gray sphere
-    from relight.probes import camera_to_pan_tilt
+    from relight.frames import camera_to_pan_tilt
     assert (entry["pan_deg"], entry["tilt_deg"]) == pytest.approx(camera_to_pan_tilt(entry["to_light_camera"], 10))
     import cv2
     overlay = cv2.imread(str(qa))

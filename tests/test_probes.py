@@ -4,7 +4,8 @@ import os
 import numpy as np
 import pytest
 
-from relight import metrics, probes
+from relight import frames, metrics
+from relight.probe import ortho as probes
 from relight.colour import srgb_decode
 
 SYNTH_DIR_TOL_DEG = 1.0      # synthetic Lambert fit: exact up to pixel sampling
@@ -56,9 +57,9 @@ def test_chrome_highlight_is_mirror_reflection(light):
 
 def test_camera_to_pan_tilt_convention():
     # camera at pan 0, tilt 0: image right (+x) is world +Y -> pan_rel 90; straight up -> tilt 90
-    assert probes.camera_to_pan_tilt([1, 0, 0], 0.0) == pytest.approx((90.0, 0.0))
-    assert probes.camera_to_pan_tilt([0, 0, 1], 0.0) == pytest.approx((0.0, 0.0))
-    assert probes.camera_to_pan_tilt([0, 1, 0], 0.0)[1] == pytest.approx(90.0)
+    assert frames.camera_to_pan_tilt([1, 0, 0], 0.0) == pytest.approx((90.0, 0.0))
+    assert frames.camera_to_pan_tilt([0, 0, 1], 0.0) == pytest.approx((0.0, 0.0))
+    assert frames.camera_to_pan_tilt([0, 1, 0], 0.0)[1] == pytest.approx(90.0)
 
 
 def test_bad_mask():
@@ -94,7 +95,7 @@ def test_probe_cli_writes_predictions(tmp_path, capsys):
     assert main(args) == 0
     pred = read_predictions(out).predictions[0]
     truth = np.loadtxt(os.path.join(DATA, "lights.txt"), skiprows=1)[3]
-    pan, tilt = probes.camera_to_pan_tilt(truth, 0.0)
+    pan, tilt = frames.camera_to_pan_tilt(truth, 0.0)
     assert metrics.direction_error_deg(pred.pan_deg, pred.tilt_deg, pan, tilt) < REAL_CHROME_MEDIAN_TOL_DEG * 2
     capsys.readouterr()
     # a mask that is not an image: one line, exit 2, nothing written (without a mask the

@@ -53,7 +53,7 @@ def circle(text: str) -> tuple[float, float, float]:
 def cmd_probe(args) -> int:
     from relight.fileio import check_file_target, check_outputs
     from relight.predictions import write_predictions
-    from relight.probe_run import ProbeConfig, run_probe, write_qa
+    from relight.probe.run import ProbeConfig, run_probe, write_qa
     inputs = [args.chrome, args.chrome_mask, args.diffuse, args.diffuse_mask]
     check_outputs([args.out, args.qa], inputs)
     check_file_target(args.out)

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from relight import backend
-from relight.probe_geometry import Camera, Sphere, outline_circle
+from relight.probe.geometry import Camera, Sphere, outline_circle
 
 LIGHT_ANGULAR_RADIUS_DEG = 2.0
 LIGHT_DISTANCE_RADII = 1000.0

@@ -17,7 +17,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from relight import frames
 from relight.errors import ProbeError
 
 HIGHLIGHT_FRACTION = 0.98    # pixels at >= 98% of the chrome sphere's peak form the highlight
@@ -122,11 +121,3 @@ def diffuse_light(image: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.n
     if np.linalg.norm(b) == 0 or rgb.max() <= 0:
         raise ProbeError("degenerate diffuse sphere shading")
     return b / np.linalg.norm(b), rgb / np.linalg.norm(rgb)
-
-
-def camera_to_pan_tilt(to_light_cam, camera_tilt_deg: float) -> tuple[float, float]:
-    """``(pan_rel_deg, tilt_deg)`` of a camera-frame direction for a camera at pan 0 and
-    the given tilt (the conventions' world frame: pan_rel 90 = camera's right)."""
-    world = frames.camera_to_world_vector(np.asarray(to_light_cam, np.float64), camera_tilt_deg)
-    _, pan_deg, tilt_deg = frames.cartesian_to_spherical(world)
-    return float(pan_deg), float(tilt_deg)

@@ -40,7 +40,7 @@ MERGED_FRACTION = 0.1          # ... with over 10% of its pixels touches other b
 RIM_EXCLUDE_PX = 1.0           # pixels within 1 px of the outline are mixed with the background
 MAX_RIM_ANGLE_DEG = 80.0       # normals more than 80 deg from the view ray are too foreshortened
 LIT_FRACTION = (0.25, 0.95)    # diffuse pixels used for the shading fit, as fractions of the peak
-DIFFUSE_RIM_FRACTION = 0.9     # diffuse fit: normals within 0.9 of the radius (as relight.probes)
+DIFFUSE_RIM_FRACTION = 0.9     # diffuse fit: normals within 0.9 of the radius (as relight.probe.ortho)
 ORTHO_DEPTH = 1.0e4            # z of an orthographic sphere's centre (any value works)
 OUTLINE_LOSS_SCALE_PX = 0.5    # robust outline fit: residuals beyond ~0.5 px count less
 
@@ -461,7 +461,7 @@ def diffuse_light(image: np.ndarray, camera: Camera, sphere: Sphere,
     """Light direction (unit, camera frame), colour (unit-norm linear RGB) and fit figures
     from a diffuse sphere, with each pixel's perspective normal.
 
-    As :func:`relight.probes.diffuse_light`: Lambert shading plus a constant ambient term
+    As :func:`relight.probe.ortho.diffuse_light`: Lambert shading plus a constant ambient term
     fitted on pixels between :data:`LIT_FRACTION` of the peak; colour = their mean RGB.
     """
     img = np.asarray(image, np.float64)

@@ -1,6 +1,6 @@
 """``relight probe`` as a library call: images in, one predictions entry (and a QA
-overlay) out. See :mod:`relight.probe_geometry` for the geometry and
-:mod:`relight.probe_detect` for finding the spheres."""
+overlay) out. See :mod:`relight.probe.geometry` for the geometry and
+:mod:`relight.probe.detect` for finding the spheres."""
 from __future__ import annotations
 
 import math
@@ -8,9 +8,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from relight import probe_detect as detect
-from relight import probe_geometry as geom
-from relight.probe_geometry import Camera, ProbeError, Sphere
+from relight.probe import detect
+from relight.probe import geometry as geom
+from relight.probe.geometry import Camera, ProbeError, Sphere
 
 
 @dataclass(frozen=True)
@@ -65,7 +65,7 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
                   ) -> tuple[Sphere, np.ndarray | None, str]:
     """The ``kind`` sphere in ``image`` from a mask, a circle (refined on the image's
     edges unless ``refine`` is off or the edges disagree), or automatic detection
-    (``candidates``: those of :func:`relight.probe_detect.find_spheres`, if already found;
+    (``candidates``: those of :func:`relight.probe.detect.find_spheres`, if already found;
     the list is filled in place). Returns ``(sphere, mask or None, how)``."""
     if mask_path is not None:
         mask = detect.load_mask(mask_path)
@@ -145,7 +145,7 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
     entry["method"] = "+".join(methods)
     entry["projection"] = ("orthographic" if not result.camera.perspective
                            else f"perspective, focal {result.camera.focal_px:.2f} px")
-    from relight.probes import camera_to_pan_tilt
+    from relight.frames import camera_to_pan_tilt
     tilt = cfg.camera_tilt_deg if cfg.camera_tilt_deg is not None else 0.0
     entry["pan_deg"], entry["tilt_deg"] = camera_to_pan_tilt(direction, tilt)
     return result

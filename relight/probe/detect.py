@@ -24,7 +24,7 @@ import numpy as np
 from scipy import ndimage
 
 from relight.colour import srgb_decode, srgb_encode
-from relight.probe_geometry import (Camera, ProbeError, Sphere, fit_sphere, outline_circle,
+from relight.probe.geometry import (Camera, ProbeError, Sphere, fit_sphere, outline_circle,
                                     outline_polygon, sphere_from_circle, sphere_pixels)
 
 EDGE_SIGMA_PX = 0.7

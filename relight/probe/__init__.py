@@ -1,0 +1,12 @@
+"""Light from probe spheres in a photograph (the paper's Experiment 2 ground truth):
+a chrome sphere's highlight gives the direction, a gray sphere's shading the colour.
+
+* :mod:`relight.probe.ortho`: the paper's procedure for a near-orthographic view and a
+  given mask (circle fit, highlight direction, diffuse shading and colour).
+* :mod:`relight.probe.geometry`: the same for real cameras: the sphere's 3-D centre
+  from its outline, each pixel's own view ray reflected about the sphere normal,
+  highlight localisation.
+* :mod:`relight.probe.detect`: finding the spheres (circle detection, outline
+  refinement, chrome or diffuse).
+* :mod:`relight.probe.run`: ``relight probe`` as one library call, with the QA overlay.
+"""
