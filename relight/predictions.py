@@ -85,13 +85,17 @@ def _optional_number(extra: dict, key: str, entry: str, lo: float, hi: float, nu
 
 def _check_optional(extra: dict, entry: str) -> None:
     """The optional fields of the conventions: ``cone90_deg`` in (0, 180], ``kappa`` > 0,
-    ``cct_k`` in [1000, 25000] K and ``duv`` in [-0.05, 0.05], both null or neither."""
+    ``cct_k`` in [1000, 25000] K and ``duv`` in [-0.05, 0.05], both null or neither;
+    relight's ``colour_reliable`` a boolean."""
     _optional_number(extra, "cone90_deg", entry, 0.0, 180.0, False, open_lo=True)
     _optional_number(extra, "kappa", entry, 0.0, math.inf, False, open_lo=True)
     _optional_number(extra, "cct_k", entry, 1000.0, 25000.0, True)
     _optional_number(extra, "duv", entry, -0.05, 0.05, True)
     if ("cct_k" in extra) != ("duv" in extra) or (extra.get("cct_k") is None) != (extra.get("duv") is None):
         raise PredictionsError(f"entry {entry}: cct_k and duv go together (both numbers or both null)")
+    if "colour_reliable" in extra and not isinstance(extra["colour_reliable"], bool):
+        raise PredictionsError(f"entry {entry}: colour_reliable must be true or false, "
+                               f"got {extra['colour_reliable']!r}")
 
 
 def parse_entry(raw, index: int, colour_only: bool = False) -> Prediction:

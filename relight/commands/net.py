@@ -124,6 +124,12 @@ def cmd_predict(args) -> int:
     check_outputs([args.out], files)
     tilt = DEFAULT_CAMERA_TILT_DEG if args.camera_tilt is None else args.camera_tilt
     preds = predict_files(model, files, tilt)
+    grey = [p["id"] for p in preds if p.get("colour_reliable") is False]
+    if grey:
+        import sys
+        names = ", ".join(grey[:3]) + (f" and {len(grey) - 3} more" if len(grey) > 3 else "")
+        print(f"warning: {names}: grayscale image{'s' if len(grey) > 1 else ''}, the colour estimate is "
+              'meaningless (marked "colour_reliable": false)', file=sys.stderr)
     print(f"camera tilt assumed: {tilt:g} deg{' (default, as the paper for photographs)' if args.camera_tilt is None else ''}")
     print(f"{'id':<20} {'pan_rel':>8} {'tilt':>7} {'cone90':>7}  {'rgb (unit)':<22} {'CCT K':>6} input")
     for p in preds:
@@ -131,7 +137,7 @@ def cmd_predict(args) -> int:
         cone = f"{p['cone90_deg']:7.1f}" if "cone90_deg" in p else f"{'-':>7}"
         cct = f"{p['cct_k']:6.0f}" if p["cct_k"] is not None else f"{'-':>6}"
         print(f"{p['id'][:20]:<20} {p['pan_deg']:8.1f} {p['tilt_deg']:7.1f} {cone}  {rgb:<22} {cct} {p['assumed']}")
-    fields = ("id", "pan_deg", "tilt_deg", "rgb", "y", "cct_k", "duv", "kappa", "cone90_deg")
+    fields = ("id", "pan_deg", "tilt_deg", "rgb", "y", "cct_k", "duv", "kappa", "cone90_deg", "colour_reliable")
     entries = [{k: p[k] for k in fields if k in p} | {"file": os.path.abspath(p["file"])} for p in preds]
     write_predictions(args.out, entries, model=args.model or "shipped", camera_tilt_deg=tilt,
                       inputs=files)

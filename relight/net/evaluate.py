@@ -6,7 +6,8 @@ Report folder contents:
     metrics.json       the same numbers, machine-readable (relight.metrics.error_tables),
                        plus ``cct`` (CCT error in kelvin and mireds) and, for a model
                        with a kappa head, ``uncertainty`` (relight.net.uncertainty)
-    per_image.csv      id, truth, prediction and the four errors of every image
+    per_image.csv      id, truth, prediction and the four errors of every image; for a
+                       model with a kappa head also ``kappa`` and ``cone90_deg``
     predictions.json   relight.predictions/v1 (pan_deg = predicted pan_rel, tilt_deg,
                        rgb unit norm, and the raw y; cct_k, duv; kappa, cone90_deg),
                        the input of ``relight compare``
@@ -171,19 +172,27 @@ def evaluate(model, data_dir: str | os.PathLike, out_dir: str | os.PathLike, spl
                     lambda tmp: plot_reliability(uncertainty, tmp, f"{model_name or 'model'}: 90% cone covers "
                                                  f"{100 * uncertainty['cone90_coverage']:.1f}%"))
         t.stage(os.path.join(out_dir, "per_image.csv"),
-                lambda tmp: _write_per_image(tmp, truth, pan, tilt, rgb, errors))
+                lambda tmp: _write_per_image(tmp, truth, pan, tilt, rgb, errors, kappa))
         write_predictions(os.path.join(out_dir, "predictions.json"), entries,
                           dataset=os.path.abspath(data_dir), model=model_name, split=split, transaction=t)
     return tables
 
 
-def _write_per_image(path: str, truth: dict, pan, tilt, rgb, errors) -> None:
+def _write_per_image(path: str, truth: dict, pan, tilt, rgb, errors, kappa=None) -> None:
+    """The per-image table; with ``kappa`` (calibrated, (N,)) two more columns, ``kappa``
+    and ``cone90_deg`` (the radius of the 90% cone, as in the predictions file)."""
+    cone = None
+    if kappa is not None:
+        from relight.net.uncertainty import CONE_LEVEL, cone_radius_deg
+        cone = cone_radius_deg(kappa, CONE_LEVEL)
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["id", "camera_tilt_deg", "pan_rel_gt_deg", "tilt_gt_deg", "r_gt", "g_gt", "b_gt",
                     "pan_rel_pred_deg", "tilt_pred_deg", "r_pred", "g_pred", "b_pred",
-                    "pan_err_deg", "tilt_err_deg", "direction_err_deg", "colour_err_deg"])
+                    "pan_err_deg", "tilt_err_deg", "direction_err_deg", "colour_err_deg"]
+                   + (["kappa", "cone90_deg"] if cone is not None else []))
         for i, pid in enumerate(truth["id"]):
             w.writerow([pid, truth["camera_tilt_deg"][i], truth["pan_rel_deg"][i], truth["tilt_deg"][i],
                         *np.round(truth["rgb"][i], 6), round(float(pan[i]), 4), round(float(tilt[i]), 4),
-                        *np.round(rgb[i], 6), *(round(float(errors[m][i]), 4) for m in metrics.METRICS)])
+                        *np.round(rgb[i], 6), *(round(float(errors[m][i]), 4) for m in metrics.METRICS)]
+                       + ([float(f"{kappa[i]:.6g}"), round(float(cone[i]), 4)] if cone is not None else []))

@@ -6,6 +6,11 @@ arrays from a renderer) are first encoded to 8-bit sRGB with
 :func:`relight.render.to_srgb8` -- the way the dataset PNGs were written -- while
 PNG/JPEG files are taken as 8-bit sRGB already. The output 7-vector is decoded with
 the stated camera tilt (photographs: the paper assumes 45 degrees) and camera pan 0.
+
+A grayscale input (grey PNG/EXR, or RGB whose channels agree within
+:data:`ACHROMATIC_TOLERANCE` code values in every pixel, see :func:`is_achromatic`)
+carries no light colour: its prediction still has an ``rgb`` but is marked
+``"colour_reliable": false`` (docs/conventions.md, project additions).
 """
 from __future__ import annotations
 
@@ -21,9 +26,21 @@ from relight.net.io import SHIPPED_MODEL, ModelFileError, load_model_file
 
 DEFAULT_CAMERA_TILT_DEG = frames.PHOTO_CAMERA_TILT_DEG  # the paper's assumption for photographs
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".exr")
+ACHROMATIC_TOLERANCE = 2   # 8-bit sRGB code values between the channels of a grayscale pixel (JPEG rounding)
 
 __all__ = ["load_model", "predict_arrays", "predict_files", "list_images", "ModelFileError",
-           "DEFAULT_CAMERA_TILT_DEG"]
+           "DEFAULT_CAMERA_TILT_DEG", "is_achromatic"]
+
+
+def is_achromatic(srgb8: np.ndarray, tolerance: int = ACHROMATIC_TOLERANCE) -> bool:
+    """True when the three channels of every pixel of ``srgb8`` (``(H, W, 3)`` 8-bit
+    sRGB) agree within ``tolerance`` code values: a grayscale image (or grey stored as
+    RGB), whose colour says nothing about the light's colour. An empty image is not."""
+    a = np.asarray(srgb8)
+    if a.ndim != 3 or a.shape[2] < 3 or a.size == 0:
+        return False
+    a = a[..., :3].astype(np.int16)
+    return bool(int((a.max(axis=2) - a.min(axis=2)).max()) <= tolerance)
 
 
 def load_model(path: str | os.PathLike | None = None):
@@ -39,7 +56,8 @@ def load_model(path: str | os.PathLike | None = None):
     return load_model_file(path)
 
 
-def _predict_inputs(model, inputs: list[torch.Tensor], camera_tilt_deg, batch_size: int = 32) -> list[dict]:
+def _predict_inputs(model, inputs: list[torch.Tensor], camera_tilt_deg, batch_size: int = 32,
+                    achromatic: list[bool] | None = None) -> list[dict]:
     tilts = np.asarray(camera_tilt_deg, dtype=np.float64).reshape(-1)
     if tilts.size != len(inputs):
         raise ValueError(f"expected one camera tilt per image ({len(inputs)}), got {tilts.size}")
@@ -58,6 +76,9 @@ def _predict_inputs(model, inputs: list[torch.Tensor], camera_tilt_deg, batch_si
     y = np.concatenate(ys)
     pan, tilt, rgb = decode_outputs(y, tilts)
     extras = extra_fields(rgb, np.concatenate(kappas) if kappas else None)
+    for i, grey in enumerate(achromatic or []):
+        if grey:
+            extras[i]["colour_reliable"] = False
     return [{"pan_deg": float(pan[i]), "tilt_deg": float(tilt[i]), "rgb": [float(v) for v in rgb[i]],
              "y": [float(v) for v in y[i]], **extras[i]} for i in range(len(inputs))]
 
@@ -76,26 +97,35 @@ def predict_arrays(model, images_linear: list[np.ndarray], camera_tilt_deg: list
         0 = front, 90 = camera's right), ``tilt_deg`` (light elevation), ``rgb``
         (unit norm, linear), ``y`` (the raw 7-vector), ``cct_k`` and ``duv`` (None
         where the colour is far from the Planckian locus) and, for a model with a
-        kappa head, ``kappa`` and ``cone90_deg`` (radius of the 90% cone, degrees).
+        kappa head, ``kappa`` and ``cone90_deg`` (radius of the 90% cone, degrees);
+        ``colour_reliable`` = False for a grayscale image (:func:`is_achromatic`).
     """
     from relight.render import to_srgb8
     res = model.config.res
-    inputs = []
+    inputs, achromatic = [], []
     for k, img in enumerate(images_linear):
         a = np.asarray(img)
         if a.ndim != 3 or a.shape[2] < 3:
             raise ValueError(f"image #{k}: expected (H, W, 3) linear RGB, got shape {a.shape}")
-        inputs.append(prepare_srgb8(to_srgb8(a[..., :3]), res))
-    return _predict_inputs(model, inputs, camera_tilt_deg)
+        srgb8 = to_srgb8(a[..., :3])
+        inputs.append(prepare_srgb8(srgb8, res))
+        achromatic.append(is_achromatic(srgb8))
+    return _predict_inputs(model, inputs, camera_tilt_deg, achromatic=achromatic)
 
 
 def read_input(path: str, res: int) -> tuple[torch.Tensor, str]:
     """Network input of an image file and how it was read (see
     :func:`relight.render.load_image`: every PNG mode and bit depth, JPEG, EXR).
     Raises :class:`relight.render.ImageError` for unreadable files."""
+    x, note, _ = _read_input(path, res)
+    return x, note
+
+
+def _read_input(path: str, res: int) -> tuple[torch.Tensor, str, bool]:
+    """:func:`read_input` and whether the image is grayscale (:func:`is_achromatic`)."""
     from relight.render import read_srgb8
     srgb8, note = read_srgb8(path)
-    return prepare_srgb8(srgb8, res), note
+    return prepare_srgb8(srgb8, res), note, is_achromatic(srgb8)
 
 
 def list_images(paths: list[str]) -> list[str]:
@@ -130,11 +160,13 @@ def image_ids(files: list[str]) -> list[str]:
 
 def predict_files(model, files: list[str], camera_tilt_deg: float = DEFAULT_CAMERA_TILT_DEG) -> list[dict]:
     """Predictions for image files; each dict also has ``id``, ``file`` and ``assumed``
-    (how its pixels were interpreted)."""
-    inputs, assumed = [], []
+    (how its pixels were interpreted), and ``colour_reliable`` = False for a grayscale
+    image (:func:`is_achromatic`)."""
+    inputs, assumed, achromatic = [], [], []
     for f in files:
-        x, how = read_input(f, model.config.res)
+        x, how, grey = _read_input(f, model.config.res)
         inputs.append(x)
         assumed.append(how)
-    preds = _predict_inputs(model, inputs, [camera_tilt_deg] * len(files))
+        achromatic.append(grey)
+    preds = _predict_inputs(model, inputs, [camera_tilt_deg] * len(files), achromatic=achromatic)
     return [{"id": i, **p, "file": f, "assumed": a} for i, p, f, a in zip(image_ids(files), preds, files, assumed)]
