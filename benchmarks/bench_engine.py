@@ -56,20 +56,18 @@ def same_outputs(a: str, b: str) -> bool:
 def overhead_ms(cfg: GeneratorConfig, out: str, n_tasks: int) -> tuple[float, float]:
     """(engine ms per task, mean render ms per task) on a warm local:1, one image a task."""
     from relight import engine
-    with engine.client(engine.Scheduler(local=1)) as (c, threads_by_host):
-        engine.run_shards(c, threads_by_host, out, cfg, SEED, [0], lambda r: None)   # warm-up
+    from relight.dataset import _render_shard
+    context = (out, cfg, SEED)
+    with engine.client(engine.Scheduler(local=1)) as (c, threads):
+        engine.run_shards(c, _render_shard, context, [[0]], lambda part, r: None, threads)   # warm-up
         stamps, task_s, render_s = [], [], []
 
-        def on_result(r):
+        def on_result(part, r):
             stamps.append(time.perf_counter())
             task_s.append(r.task_s)
-            render_s.append(sum(r.render_s))
-        shard_before = engine.MAX_SHARD
-        engine.MAX_SHARD = 1
-        try:
-            engine.run_shards(c, threads_by_host, out, cfg, SEED, list(range(1, n_tasks + 1)), on_result)
-        finally:
-            engine.MAX_SHARD = shard_before
+            render_s.append(sum(seconds for _, seconds in r.value))
+        engine.run_shards(c, _render_shard, context, [[i] for i in range(1, n_tasks + 1)], on_result,
+                          threads)   # one image a task
     gaps = [stamps[k] - stamps[k - 1] - task_s[k] for k in range(1, len(stamps))]
     return 1e3 * sum(gaps) / len(gaps), 1e3 * sum(render_s[1:]) / len(gaps)
 

@@ -158,3 +158,22 @@ def describe() -> str:
     return (f"mitsuba {mi.__version__} variant={_state['variant']} libLLVM={llvm} "
             f"({os.environ.get('DRJIT_LIBLLVM_PATH')}) threads={dr.thread_count()} "
             f"cache={os.environ.get('DRJIT_CACHE_DIR')}")
+
+
+def cuda_devices() -> list[str]:
+    """The CUDA GPUs this process may use, as ``CUDA_VISIBLE_DEVICES`` entries, without
+    starting Dr.Jit: the entries of ``$CUDA_VISIBLE_DEVICES`` when it is set (empty or
+    ``-1``: none), else ``0..G-1`` for the G devices the CUDA driver reports (none when
+    there is no driver). The Dask engine gives each local worker one of them."""
+    visible = os.environ.get("CUDA_VISIBLE_DEVICES")
+    if visible is not None:
+        ids = [v.strip() for v in visible.split(",") if v.strip()]
+        return [] if not ids or ids[0] == "-1" else ids
+    try:
+        lib = ctypes.CDLL("libcuda.so.1")
+        count = ctypes.c_int(0)
+        if lib.cuInit(0) != 0 or lib.cuDeviceGetCount(ctypes.byref(count)) != 0:
+            return []
+    except (OSError, AttributeError):
+        return []
+    return [str(i) for i in range(count.value)]

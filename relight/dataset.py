@@ -451,25 +451,37 @@ def _generate_locked(out: str, count: int, seed: int, cfg: GeneratorConfig, work
     return stats
 
 
+def _render_shard(context, indices: list[int]) -> list[tuple[dict, float]]:
+    """Engine task (in a worker process): render and write ``indices`` of the dataset with
+    the same three-stage pipeline as the single-process path, keeping one scene builder
+    per process; returns ``(record, render seconds)`` of each image, in index order, once
+    every image's files are in place."""
+    from relight import engine
+    from relight.scene.build import SceneBuilder
+    out, cfg, seed = context
+    done = []
+    _pipeline(out, cfg, seed, indices, lambda record, render_s: done.append((record, render_s)),
+              builder=engine.worker_cache("scene_builder", SceneBuilder))
+    return done
+
+
 def _run_engine(scheduler, threads, out, cfg, seed, todo, append, stats, progress) -> None:
     """Render ``todo`` on Dask (:mod:`relight.engine`); ``append`` each record of a
     finished task here, in the client, once (a re-run task's records are skipped)."""
     from relight import engine
     appended = set()
-    t0 = time.perf_counter()
-    with engine.client(scheduler, threads) as (c, threads_by_host):
-        stats.startup_s = time.perf_counter() - t0
-        if progress:
-            engine.announce(c, local=bool(scheduler.local))
 
-        def on_result(result):
-            stats.tasks += 1
-            stats.task_s += result.task_s
-            for record, render_s in zip(result.records, result.render_s):
-                if record["id"] not in appended:
-                    appended.add(record["id"])
-                    append(record, render_s)
-        engine.run_shards(c, threads_by_host, out, cfg, seed, todo, on_result)
+    def on_result(indices, done):
+        for record, render_s in done:
+            if record["id"] not in appended:
+                appended.add(record["id"])
+                append(record, render_s)
+    run = engine.EngineStats()
+    try:
+        engine.map_shards(scheduler, _render_shard, (out, cfg, seed), todo, on_result,
+                          threads=threads, progress=progress, stats=run)
+    finally:
+        stats.tasks, stats.task_s, stats.startup_s = run.tasks, run.task_s, run.startup_s
 
 
 def load_spec(dataset_dir: str | os.PathLike, record: dict) -> SceneSpec:

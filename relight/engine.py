@@ -1,18 +1,34 @@
 """Run per-image jobs on a Dask cluster: ``--scheduler local:N`` or ``--scheduler ADDRESS``.
 
-The unit of work is a *shard*: a list of image indices rendered by one task in one
-worker process. Each image depends only on its id and seed, so a shard's output is
-byte-identical to what the single-process path writes. Tasks write their files
-atomically and return the records; only the client (the calling process) appends
-them to the manifest, and only once a task has finished, so resume, kill -9 safety
-and "no duplicates" hold as in the single-process path. A worker killed mid-task
-loses only that task, which Dask runs again elsewhere (its files are rewritten
-with the same bytes); the client ignores a record it already appended.
+One engine for every verb that works image by image (``generate``, ``compare``,
+``invert``, ``evaluate``, ``baseline``). The caller gives a *task function* and a
+picklable *context*; the unit of work is a *shard*, a list of image ids (or indices)
+that one task handles in one worker process::
 
-Each worker process initialises Mitsuba/Dr.Jit once (:func:`relight.backend.init`)
-and keeps one scene builder (loaded templates, compiled kernels) for all its tasks;
-a lock serialises tasks within a process, so give workers one Dask thread each.
-Workers must see the output folder at the same path (a shared file system).
+    def my_shard(context, shard):      # module level, so workers import it by name
+        return [work(context, i) for i in shard]
+
+    engine.map_shards("local:2", my_shard, context, ids, on_result)
+
+``on_result(shard, value)`` runs in the calling process (the *client*) as each task
+finishes, in completion order; the client alone writes the verb's outputs, from the
+gathered values, exactly as its single-process path does, so the outputs are
+byte-identical. Each image's result depends only on its id (and seed), never on the
+worker or the shard it ran in. A worker killed mid-task loses only that task, which
+Dask runs again elsewhere; the client sees each shard's value once. The context is sent
+once (a task of its own that the scheduler can recompute), not with every shard.
+
+Each worker process initialises Mitsuba/Dr.Jit once (:func:`relight.backend.init`,
+when the task function needs it), with a thread count of its cores: ``threads`` if the
+caller gives it (``--threads``), else ``$RELIGHT_THREADS`` of the worker, else on a
+``local:N`` cluster the machine's cores over N, and on a remote cluster the worker's
+Dask thread count (``dask worker --nthreads``, dask-jobqueue's ``cores / processes``).
+A lock serialises tasks within a process (they share one Mitsuba state), so a worker
+with several Dask threads runs one task at a time with all of them in Dr.Jit. Task
+functions keep per-process state (loaded scene templates) with :func:`worker_cache`.
+On a machine with CUDA GPUs, ``local:N`` pins worker ``i`` to GPU ``i mod G``
+(``CUDA_VISIBLE_DEVICES``): one worker per GPU with ``local:G``.
+Workers must see the input and output folders at the same paths (a shared file system).
 
 Dask is an optional dependency (``pip install relight[dask]``); this module imports
 it only when a scheduler is used.
@@ -26,9 +42,10 @@ import re
 import sys
 import threading
 import time
-from collections import Counter
-from dataclasses import dataclass, field
-from relight.errors import EngineError
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from relight.errors import EngineError, RelightError
 
 LOCAL_RE = re.compile(r"^local:(\d+)$")
 CONNECT_TIMEOUT_S = 20
@@ -64,6 +81,15 @@ def parse_scheduler(text: str) -> Scheduler:
     return Scheduler(address=text)
 
 
+def as_scheduler(scheduler) -> Scheduler | None:
+    """``None``, a :class:`Scheduler` or its text (parsed) -> ``Scheduler | None``."""
+    if scheduler is None or isinstance(scheduler, Scheduler):
+        return scheduler
+    if isinstance(scheduler, str):
+        return parse_scheduler(scheduler)
+    raise EngineError(f"expected local:N or a scheduler address, got {scheduler!r}")
+
+
 def _import_distributed():
     try:
         import distributed
@@ -73,15 +99,38 @@ def _import_distributed():
     return distributed
 
 
-@contextlib.contextmanager
-def client(scheduler: Scheduler, threads: int | None = None):
-    """A Dask ``Client`` on a new LocalCluster (``local``: N processes, one Dask thread
-    each) or attached to ``address``; closed (and the cluster stopped) on exit.
+def local_worker_env(n: int, gpus: list[str]) -> list[dict]:
+    """The extra environment of each of ``n`` local workers: with GPUs, worker ``i``
+    sees only GPU ``gpus[i % len(gpus)]`` (``CUDA_VISIBLE_DEVICES``); else nothing."""
+    return [{"CUDA_VISIBLE_DEVICES": gpus[i % len(gpus)]} if gpus else {} for i in range(n)]
 
-    Yields ``(client, threads_by_host)`` where ``threads_by_host`` maps a worker host
-    to the Dr.Jit threads each of its worker processes should use (``threads`` if
-    given, else the host's cores over its worker processes).
+
+def _local_cluster(distributed, n: int, logging):
+    from relight import backend
+    gpus = backend.cuda_devices()
+    if not gpus:
+        return distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                        dashboard_address=":0", silence_logs=logging.CRITICAL)
+    workers = {i: {"cls": distributed.Nanny,
+                   "options": {"nthreads": 1, "env": env, "host": "127.0.0.1",
+                               "silence_logs": logging.CRITICAL}}
+               for i, env in enumerate(local_worker_env(n, gpus))}
+    scheduler = {"cls": distributed.Scheduler,
+                 "options": {"host": "127.0.0.1", "dashboard_address": ":0"}}
+    return distributed.SpecCluster(workers=workers, scheduler=scheduler, silence_logs=logging.CRITICAL)
+
+
+@contextlib.contextmanager
+def client(scheduler: Scheduler | str, threads: int | None = None):
+    """A Dask ``Client`` on a new local cluster (``local``: N processes, one Dask thread
+    each, one GPU each when there are GPUs) or attached to ``address``; closed (and the
+    cluster stopped) on exit.
+
+    Yields ``(client, threads)``: the Dr.Jit threads a worker process uses (``threads``
+    if given, else ``$RELIGHT_THREADS`` of this process, else for ``local:N`` the cores
+    over N; 0 means "decide in the worker": its Dask thread count).
     """
+    scheduler = as_scheduler(scheduler)
     distributed = _import_distributed()
     import logging
     if os.environ.get("RELIGHT_WARNINGS") != "1":   # our one line says what went wrong
@@ -91,10 +140,7 @@ def client(scheduler: Scheduler, threads: int | None = None):
     cluster = None
     try:
         if scheduler.local:
-            cluster = distributed.LocalCluster(
-                n_workers=scheduler.local, threads_per_worker=1, processes=True,
-                dashboard_address=":0",
-                silence_logs=logging.CRITICAL)
+            cluster = _local_cluster(distributed, scheduler.local, logging)
             c = distributed.Client(cluster)
         else:
             c = distributed.Client(scheduler.address, timeout=CONNECT_TIMEOUT_S)
@@ -107,13 +153,25 @@ def client(scheduler: Scheduler, threads: int | None = None):
         raise EngineError(f"cannot start or reach the Dask scheduler {where}: "
                           f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
     try:
-        yield c, _threads_by_host(c, threads, scheduler.local)
+        yield c, worker_threads(threads, scheduler.local)
     finally:
         with contextlib.suppress(Exception):
             c.close(timeout=5)
         if cluster is not None:
             with contextlib.suppress(Exception):
                 cluster.close(timeout=10)
+
+
+def worker_threads(threads: int | None, local: int) -> int:
+    """Dr.Jit threads for each worker process, decided in the client: ``threads``, else
+    ``$RELIGHT_THREADS``, else for ``local:N`` this machine's cores over N; 0 for a
+    remote cluster (each worker then uses its own Dask thread count)."""
+    if threads:
+        return int(threads)
+    env = int(os.environ.get("RELIGHT_THREADS", 0) or 0)
+    if env:
+        return env
+    return max(1, (os.cpu_count() or 1) // local) if local else 0
 
 
 def _has_dashboard() -> bool:
@@ -136,30 +194,19 @@ def dashboard_link(c, local: bool = False) -> str | None:
     return c.dashboard_link if "dashboard" in services else None
 
 
-def _threads_by_host(c, threads: int | None, local: int) -> dict[str, int]:
-    workers = c.scheduler_info().get("workers", {})
-    hosts = Counter(_host(addr) for addr in workers)
-    if local:
-        per = threads or max(1, (os.cpu_count() or 1) // local)
-        return {h: per for h in hosts} | {"": per}
-    return {h: threads or 0 for h in hosts} | {"": threads or 0}
-
-
-def _host(address: str) -> str:
-    return address.split("://")[-1].rsplit(":", 1)[0]
-
-
 def n_workers(c) -> int:
     """Worker processes currently attached to the client's scheduler (at least 1)."""
     return max(1, len(c.scheduler_info().get("workers", {})))
 
 
-def shards(indices: list[int], workers: int) -> list[list[int]]:
-    """Split ``indices`` into consecutive shards of at most :data:`MAX_SHARD`, enough for
-    :data:`SHARDS_PER_WORKER` tasks per worker when there are that many indices."""
+def shards(indices: list, workers: int, size: int | None = None) -> list[list]:
+    """Split ``indices`` into consecutive shards: of ``size`` if given, else of at most
+    :data:`MAX_SHARD`, enough for :data:`SHARDS_PER_WORKER` tasks per worker when there
+    are that many indices."""
     if not indices:
         return []
-    size = max(1, min(MAX_SHARD, math.ceil(len(indices) / (workers * SHARDS_PER_WORKER))))
+    if size is None:
+        size = max(1, min(MAX_SHARD, math.ceil(len(indices) / (workers * SHARDS_PER_WORKER))))
     return [indices[i:i + size] for i in range(0, len(indices), size)]
 
 
@@ -169,72 +216,98 @@ _worker_state: dict = {}
 _worker_lock = threading.Lock()
 
 
-def _worker_threads(threads_by_host: dict[str, int]) -> int:
+def worker_cache(key: str, make: Callable[[], Any]):
+    """A per-process object (made once by ``make()``) that a task function keeps across
+    its tasks, e.g. a scene builder with its loaded templates."""
+    if key not in _worker_state:
+        _worker_state[key] = make()
+    return _worker_state[key]
+
+
+def _dask_threads() -> int:
     try:
         from distributed import get_worker
-        host = _host(get_worker().address)
+        w = get_worker()
     except (ImportError, ValueError):
-        host = ""
-    n = threads_by_host.get(host, threads_by_host.get("", 0))
-    if n:
-        return n
-    return int(os.environ.get("RELIGHT_THREADS", 0)) or os.cpu_count() or 1
+        return 0
+    state = getattr(w, "state", None)
+    return int(getattr(state, "nthreads", 0) or getattr(w, "nthreads", 0) or 0)
+
+
+def _threads_here(threads: int) -> int:
+    """The Dr.Jit thread count of this worker process (see :func:`worker_threads`)."""
+    return (threads or int(os.environ.get("RELIGHT_THREADS", 0) or 0) or _dask_threads()
+            or os.cpu_count() or 1)
 
 
 @dataclass
-class ShardResult:
-    """What one task did: its records (index order) and where its time went (seconds)."""
-    records: list = field(default_factory=list)
-    render_s: list = field(default_factory=list)
+class TaskResult:
+    """What one task returned, with its wall time (seconds) and worker process id."""
+    value: Any
     task_s: float = 0.0
     pid: int = 0
 
 
-def render_shard(out: str, cfg, seed: int, indices: list[int], threads_by_host: dict) -> ShardResult:
-    """Task body (in a worker process): render and write ``indices`` of the dataset in
-    ``out`` with the same three-stage pipeline as the single-process path; returns the
-    records once every image's files are in place. Mitsuba is initialised and the scene
-    builder made once per process."""
-    from relight import backend
-    from relight.dataset import _pipeline
+def _identity(x):
+    return x
+
+
+def run_task(fn: Callable, context, shard: list, threads: int, mitsuba: bool = True) -> TaskResult:
+    """Task body (in a worker process): initialise Mitsuba once per process (with
+    :func:`_threads_here` threads) when ``mitsuba``, then ``fn(context, shard)``."""
     with _worker_lock:
         t0 = time.perf_counter()
-        backend.init(threads=_worker_threads(threads_by_host))
-        if "builder" not in _worker_state:
-            from relight.scene.build import SceneBuilder
-            _worker_state["builder"] = SceneBuilder()
-        result = ShardResult(pid=os.getpid())
+        if mitsuba:
+            from relight import backend
+            n = _threads_here(threads)
+            if _worker_state.get("threads") != n:
+                backend.init(threads=n)
+                _worker_state["threads"] = n
+        value = fn(context, shard)
+        return TaskResult(value, time.perf_counter() - t0, os.getpid())
 
-        def collect(record, render_s):
-            result.records.append(record)
-            result.render_s.append(render_s)
-        _pipeline(out, cfg, seed, indices, collect, builder=_worker_state["builder"])
-        result.task_s = time.perf_counter() - t0
-        return result
+
+def worker_info(context, shard) -> dict:
+    """A task function that reports its worker: pid, Dr.Jit threads, Mitsuba variant and
+    ``CUDA_VISIBLE_DEVICES`` (for tests and for checking a cluster)."""
+    from relight import backend
+    mi = backend.mitsuba()
+    return {"pid": os.getpid(), "threads": int(backend.drjit().thread_count()),
+            "variant": mi.variant(), "cuda_visible_devices": os.environ.get("CUDA_VISIBLE_DEVICES"),
+            "shard": list(shard)}
 
 
 # --- client side ---------------------------------------------------------------------
 
-def run_shards(c, threads_by_host: dict, out: str, cfg, seed: int, todo: list[int], on_result) -> int:
-    """Submit ``todo`` as shards to client ``c`` and call ``on_result(ShardResult)`` in
-    this thread as each task finishes (any order). Returns the number of tasks.
+def run_shards(c, fn: Callable, context, parts: list[list], on_result: Callable, threads: int = 0,
+               mitsuba: bool = True) -> int:
+    """Submit ``fn(context, part)`` for each of ``parts`` to client ``c`` and call
+    ``on_result(part, TaskResult)`` in this thread as each task finishes (any order).
+    ``threads``: Dr.Jit threads per worker (0: the worker decides). Returns the number
+    of tasks.
 
     Raises :class:`EngineError` when the scheduler is lost or a task keeps failing.
     """
     distributed = _import_distributed()
-    parts = shards(todo, n_workers(c))
+    if not parts:
+        return 0
+    stamp = time.monotonic_ns()
     try:
-        futures = [c.submit(render_shard, out, cfg, seed, part, threads_by_host, pure=False,
-                            key=f"relight-shard-{part[0]:06d}-{time.monotonic_ns()}")
-                   for part in parts]
-        for fut in distributed.as_completed(futures):
+        ctx = c.submit(_identity, context, pure=False, key=f"relight-context-{stamp}")
+        futures = {c.submit(run_task, fn, ctx, part, threads, mitsuba, pure=False,
+                            key=f"relight-shard-{k:06d}-{stamp}"): part
+                   for k, part in enumerate(parts)}
+        for fut in distributed.as_completed(list(futures)):
             if fut.status == "error":   # the task itself raised (not a lost worker or scheduler)
                 exc = fut.exception()
                 if type(exc).__name__ == "KilledWorker":
                     raise EngineError(_lost_message(exc))
+                if isinstance(exc, RelightError):   # bad input met in a worker: the user's to fix
+                    raise exc
                 raise EngineError(f"a task failed: {type(exc).__name__}: {exc}")
-            on_result(fut.result())
+            on_result(futures[fut], fut.result())
             fut.release()
+        ctx.release()
     except EngineError:
         raise
     except (OSError, TimeoutError, distributed.client.FutureCancelledError) as exc:
@@ -244,6 +317,41 @@ def run_shards(c, threads_by_host: dict, out: str, cfg, seed: int, todo: list[in
             raise EngineError(_lost_message(exc)) from None
         raise
     return len(parts)
+
+
+@dataclass
+class EngineStats:
+    """What a :func:`map_shards` call did: tasks, their summed wall time and the time
+    to start or reach the cluster (seconds)."""
+    tasks: int = 0
+    task_s: float = 0.0
+    startup_s: float = 0.0
+
+
+def map_shards(scheduler, fn: Callable, context, ids: list, on_result: Callable, *,
+               threads: int | None = None, mitsuba: bool = True, shard_size: int | None = None,
+               progress: bool = True, stats: EngineStats | None = None) -> EngineStats:
+    """Run ``fn(context, shard)`` over shards of ``ids`` on ``scheduler`` (``local:N``,
+    an address or a :class:`Scheduler`) and call ``on_result(shard, value)`` here, in
+    the client, as each shard finishes. ``fn`` must be a module-level function and
+    ``context`` picklable; ``mitsuba``: the workers need Mitsuba (initialised once per
+    process); ``shard_size``: fixed ids per task (default: see :func:`shards`);
+    ``progress``: print the worker count and dashboard on stderr. ``stats`` is filled
+    as the run goes (also when it fails)."""
+    scheduler = as_scheduler(scheduler)
+    stats = stats if stats is not None else EngineStats()
+    t0 = time.perf_counter()
+    with client(scheduler, threads) as (c, n_threads):
+        stats.startup_s = time.perf_counter() - t0
+        if progress:
+            announce(c, local=bool(scheduler.local))
+
+        def done(part, result: TaskResult):
+            stats.tasks += 1
+            stats.task_s += result.task_s
+            on_result(part, result.value)
+        run_shards(c, fn, context, shards(list(ids), n_workers(c), shard_size), done, n_threads, mitsuba)
+    return stats
 
 
 def _lost_message(exc: BaseException) -> str:

@@ -101,15 +101,21 @@ def test_sigkill_of_a_worker_mid_run_loses_and_duplicates_nothing(tmp_path, sing
     assert _records_by_id(out) == _records_by_id(single)
 
 
-def test_a_failing_task_is_one_error_not_a_lost_scheduler(tmp_path, monkeypatch):
-    from relight import engine
+def _broken(context, shard):
+    raise OSError(28, "No space left on device")
 
-    def broken(*args):
-        raise OSError(28, "No space left on device")
-    monkeypatch.setattr(engine, "render_shard", broken)
-    with engine.client(engine.Scheduler(local=1)) as (c, threads_by_host):
+
+def test_a_failing_task_is_one_error_not_a_lost_scheduler():
+    import cloudpickle
+
+    from relight import engine
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])   # workers cannot import tests/
+    try:
         with pytest.raises(EngineError, match="a task failed: OSError.*No space left"):
-            engine.run_shards(c, threads_by_host, str(tmp_path), CFG, SEED, [0, 1], lambda r: None)
+            engine.map_shards("local:1", _broken, None, [0, 1], lambda part, value: None,
+                              mitsuba=False, progress=False)
+    finally:
+        cloudpickle.unregister_pickle_by_value(sys.modules[__name__])
 
 
 def _cli(*args):
