@@ -59,7 +59,8 @@ def make_scenes(n_per_group: int, res: int, spp: int, seed: int):
 def estimators():
     """name -> function(renderer, target_at, pan, tilt, r) -> (loss, grad (2,))."""
     from relight.inverse import ad
-    from relight.inverse.optimize import DEFAULT_LEVELS, ad_loss_gradient, loss_gradient
+    from relight.inverse.objective import loss_gradient
+    from relight.inverse.optimize import DEFAULT_LEVELS, ad_loss_gradient
     l0, l1 = DEFAULT_LEVELS
     shading = ad.ADSettings(visibility=False)
     return {
@@ -81,7 +82,8 @@ def estimators():
 def gradient_study(scenes, rng):
     from tqdm import tqdm
 
-    from relight.inverse.optimize import LightRenderer, downsample, loss_gradient, tangent_move
+    from relight.frames import tangent_move
+    from relight.inverse.objective import LightRenderer, downsample, loss_gradient
     from relight.scene.build import SceneBuilder
     fns = estimators()
     rows = []   # (group, id, estimator, angle, ratio, seconds)

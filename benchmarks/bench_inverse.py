@@ -99,9 +99,10 @@ def cost_to_accuracy(trace, rec, tol_deg=1.0):
 def gradient_study(recs, data, n):
     """Angle (deg) and magnitude ratio of each estimator against the fine reference."""
     from relight.dataset import load_spec, safe_join
-    from relight.inverse.optimize import (DEFAULT_LEVELS, LightRenderer, ad_loss_gradient,
-                                          downsample, loss_gradient, tangent_move)
-    from relight.render import read_image
+    from relight.frames import tangent_move
+    from relight.inverse.objective import LightRenderer, downsample, loss_gradient
+    from relight.inverse.optimize import DEFAULT_LEVELS, ad_loss_gradient
+    from relight.imageio import read_image
     from relight.scene.build import SceneBuilder
     rows = {"FD L0 (32px, 8spp, h=2)": [], "FD L1 (64px, 32spp, h=0.5)": [],
             "AD shading-only (64px, 32spp)": []}
@@ -159,9 +160,10 @@ def main(argv=None) -> int:
     backend.init(args.threads)
     from relight.dataset import load_spec, read_manifest, safe_join
     from relight.inverse import colour_baselines as cb
-    from relight.inverse.optimize import InvertConfig, invert, tangent_move
+    from relight.frames import tangent_move
+    from relight.inverse.optimize import InvertConfig, invert
     from relight.predictions import write_predictions
-    from relight.render import read_image
+    from relight.imageio import read_image
     from relight.scene.build import SceneBuilder
 
     os.makedirs(args.out_dir, exist_ok=True)

@@ -46,7 +46,7 @@ def _renders(args, folder: str, rows: list, qa_dir: str | None) -> None:
     from relight.probe import ortho as probes
     from relight.probe.geometry import ProbeError
     from relight.probe.run import write_qa
-    from relight.render import write_png
+    from relight.imageio import write_png
     from relight.verify import probe_scenes
 
     jobs = [(seed, clutter) for clutter in (False, True) for seed in range(args.seed, args.seed + args.count)]

@@ -267,11 +267,12 @@ def export_blender(spec: SceneSpec, blend_path: str | os.PathLike | None = None,
     scene.collection.objects.link(light_ob)
 
     if blend_path is not None:
-        blend_path = os.path.abspath(os.fspath(blend_path))
-        tmp = f"{blend_path[:-6] if blend_path.endswith('.blend') else blend_path}.tmp{os.getpid()}.blend"
-        with _quiet_stdout():
-            bpy.ops.wm.save_as_mainfile(filepath=tmp, copy=True, compress=True)
-        os.replace(tmp, blend_path)
+        from relight.fileio import atomic_write
+
+        def save(tmp):
+            with _quiet_stdout():
+                bpy.ops.wm.save_as_mainfile(filepath=tmp, copy=True, compress=True)
+        atomic_write(os.path.abspath(os.fspath(blend_path)), save)
     return scene
 
 
@@ -345,11 +346,9 @@ def render_cycles(spec: SceneSpec, *, spp: int | None = None, seed: int | None =
         finally:
             bpy.data.images.remove(img)
         if exr_path is not None:
-            exr_path = os.fspath(exr_path)
-            tmp_dst = f"{exr_path}.tmp{os.getpid()}"
-            with open(out, "rb") as src, open(tmp_dst, "wb") as dst:
-                dst.write(src.read())
-            os.replace(tmp_dst, exr_path)
+            from relight.fileio import write_bytes
+            with open(out, "rb") as src:
+                write_bytes(exr_path, src.read())
     return image, seconds
 
 
@@ -450,9 +449,12 @@ def _worker(threads: int | None) -> int:
         try:
             image, seconds = render_cycles(load_scene(job["scene"]), spp=job["spp"], seed=job["seed"],
                                            threads=threads)
-            tmp = f"{job['out']}.tmp{os.getpid()}.npy"
-            np.save(tmp, image)
-            os.replace(tmp, job["out"])
+            from relight.fileio import atomic_write
+
+            def save(tmp, image=image):
+                with open(tmp, "wb") as f:
+                    np.save(f, image)
+            atomic_write(job["out"], save)
             protocol.write(json.dumps({"seconds": seconds}) + "\n")
         except (BlenderError, ValueError, OSError) as exc:
             protocol.write(json.dumps({"error": str(exc).splitlines()[0]}) + "\n")

@@ -229,7 +229,7 @@ def _prepare(cfg: GeneratorConfig, seed: int, index: int):
 def _write(out: str, spec: SceneSpec, image: np.ndarray, split: str) -> dict:
     """Stage 3 (writer thread): the scene file, EXR and PNG, each atomically; returns
     the record to append once all three are in place."""
-    from relight.render import write_exr, write_png
+    from relight.imageio import write_exr, write_png
     from relight.fileio import write_text
     write_text(os.path.join(out, "scenes", f"{spec.id}.json"), spec.to_json())
     write_exr(os.path.join(out, "exr", f"{spec.id}.exr"), image)

@@ -23,6 +23,8 @@ Angles are degrees at every public edge; radians stay inside the maths.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 __all__ = [
@@ -145,6 +147,70 @@ def pan_rel_deg(pan_l_deg, pan_c_deg=0.0):
     (90.0, 90.0)
     """
     return wrap360(np.asarray(pan_l_deg, dtype=np.float64) - pan_c_deg)
+
+
+def pan_from_rel(pan_rel, pan_c_deg=0.0):
+    """World pan of a light at ``pan_rel`` relative to a camera at ``pan_c_deg``:
+    ``wrap360(pan_c + pan_rel)`` in [0, 360), the inverse of :func:`pan_rel_deg`.
+
+    >>> float(pan_from_rel(90.0, 300.0)), float(pan_rel_deg(pan_from_rel(250.0, 170.0), 170.0))
+    (30.0, 250.0)
+    """
+    return wrap360(np.asarray(pan_c_deg, dtype=np.float64) + pan_rel)
+
+
+def tangent_move(pan_deg: float, tilt_deg: float, du_deg: float, dv_deg: float) -> tuple[float, float]:
+    """Move a direction by arc steps: ``du`` along increasing pan (horizontal), ``dv``
+    along increasing tilt (toward the zenith), both in degrees of arc, along the
+    geodesic of length ``|(du, dv)|``; returns ``(pan_deg in [0, 360), tilt_deg in
+    [-90, 90])``. Regular at the zenith (there the pan we came with is kept).
+
+    On the horizon a pan step is a plain pan change; 20 degrees of arc up from tilt 80
+    cross the zenith and come down on the other side (pan + 180, tilt 80):
+
+    >>> [round(x, 9) for x in tangent_move(10.0, 0.0, 5.0, 0.0)]
+    [15.0, 0.0]
+    >>> [round(x, 9) for x in tangent_move(0.0, 80.0, 0.0, 20.0)]
+    [180.0, 80.0]
+    """
+    d = direction(pan_deg, tilt_deg)
+    e_pan, e_tilt = tangent_basis(pan_deg, tilt_deg)
+    step = np.radians(du_deg) * e_pan + np.radians(dv_deg) * e_tilt
+    angle = float(np.linalg.norm(step))
+    moved = d if angle == 0 else d * np.cos(angle) + step / angle * np.sin(angle)
+    _, pan, tilt = cartesian_to_spherical(moved)
+    if abs(float(tilt)) > 89.9999:
+        pan = pan_deg
+    return float(pan), float(tilt)
+
+
+def rotation_z(angle_deg: float) -> np.ndarray:
+    """3x3 rotation about +Z by ``angle_deg`` (counter-clockwise seen from above, i.e.
+    toward increasing pan): ``rotation_z(a) @ direction(p, t) == direction(p + a, t)``.
+
+    >>> bool(np.allclose(rotation_z(30.0) @ direction(10.0, 20.0), direction(40.0, 20.0)))
+    True
+    """
+    a = math.radians(float(angle_deg))
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def frame_z_to(d) -> np.ndarray:
+    """3x3 rotation taking local +Z to the unit vector along ``d`` (columns: x, y, z of
+    the local frame in world coordinates; x and y any orthonormal pair).
+
+    >>> m = frame_z_to([0.0, 3.0, 0.0])
+    >>> (np.round(m[:, 2], 12) + 0.0).tolist(), bool(np.allclose(m.T @ m, np.eye(3)))
+    ([0.0, 1.0, 0.0], True)
+    """
+    d = np.asarray(d, dtype=np.float64)
+    d = d / np.linalg.norm(d)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(d[2]) > 0.9 else np.array([0.0, 0.0, 1.0])
+    x = np.cross(helper, d)
+    x /= np.linalg.norm(x)
+    y = np.cross(d, x)
+    return np.stack([x, y, d], axis=1)
 
 
 def encode_y(pan_l_deg, tilt_l_deg, rgb, tilt_c_deg, pan_c_deg=0.0) -> np.ndarray:

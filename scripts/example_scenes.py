@@ -94,7 +94,7 @@ def main() -> int:
         print(f"scenes/{name}.json")
     if args.update_references:
         from relight import backend
-        from relight.render import render_spec
+        from relight.scene.build import render_spec
         from relight.scene.spec import load_scene
         backend.init()
         refs = {}

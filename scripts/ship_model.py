@@ -101,7 +101,7 @@ dataset made by `relight generate`. It is the default model of `relight predict`
   pan (sin/cos), tilt (sin/cos), colour (RGB, softplus){kappa_text}. He-normal initialisation.
 - {meta['parameters']:,} parameters; {meta['gflop_per_image']:.3f} GFLOP per 128 px image (forward).
 - Input: 128 x 128 8-bit sRGB scaled to [0, 1] (PNG/JPEG as is; EXR / linear arrays encoded
-  with `relight.render.to_srgb8` first, like the dataset PNGs; other sizes centre-cropped to a
+  with `relight.imageio.to_srgb8` first, like the dataset PNGs; other sizes centre-cropped to a
   square and bilinearly resized). Output: the 7-vector of `shared/conventions.md`, decoded
   with the camera tilt (photographs: 45 deg assumed, as in the paper).
 - File: safetensors (no pickle), {os.path.getsize(SHIPPED_MODEL) / 1e6:.1f} MB; metadata in its

@@ -102,7 +102,7 @@ needs_blender = pytest.mark.skipif(blender.blender_python() is None and importli
 def test_cycles_matches_mitsuba_on_a_tiny_scene(mi, tmp_path):
     """export-blender's Cycles render (through the CLI) against Mitsuba, same scene file."""
     from relight.cli import main
-    from relight.render import read_exr
+    from relight.imageio import read_exr
     from relight.scene.build import SceneBuilder
     spec = sphere_scene(res=24, spp=256, seed=3, roughness=0.0)
     scene = tmp_path / "s.json"

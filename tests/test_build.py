@@ -11,7 +11,7 @@ EXPOSURE_REL_TOL = 0.08
 
 
 def _render(spec):
-    from relight.render import render_spec
+    from relight.scene.build import render_spec
     return render_spec(spec)
 
 

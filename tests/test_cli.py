@@ -54,7 +54,7 @@ def test_bad_input_one_line_exit_2(argv, tmp_path, scene_file, capsys):
 
 
 def test_render_writes_png_and_exr(tmp_path, scene_file, capsys, mi):
-    from relight.render import read_exr
+    from relight.imageio import read_exr
     assert main(["render", str(scene_file), "--out", str(tmp_path / "a.exr")]) == 0
     assert main(["render", str(scene_file), "--out", str(tmp_path / "b.exr"), "--light-pan", "90",
                  "--light-tilt", "45", "--rgb", "1,0.8,0.6"]) == 0

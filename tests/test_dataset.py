@@ -28,7 +28,7 @@ def tiny(tmp_path_factory, mi):
 
 def test_records_follow_conventions(tiny):
     from PIL import Image
-    from relight.render import read_exr
+    from relight.imageio import read_exr
     recs = read_manifest(tiny)
     assert [r["id"] for r in recs] == [f"{i:06d}" for i in range(8)]
     for r in recs:
@@ -56,7 +56,8 @@ def test_records_follow_conventions(tiny):
 
 def test_rerender_from_scene_file_is_identical(tiny):
     from relight.dataset import load_spec
-    from relight.render import read_exr, render_spec
+    from relight.imageio import read_exr
+    from relight.scene.build import render_spec
     rec = read_manifest(tiny)[5]
     assert np.array_equal(render_spec(load_spec(tiny, rec)), read_exr(tiny / rec["exr"]))
 
@@ -90,7 +91,7 @@ def test_same_index_same_image_across_runs(tmp_path, tiny, mi):
 @pytest.mark.slow   # two generate processes from a cold start: ~25 s on 2 cores
 def test_kill_minus_9_leaves_consistent_manifest(tmp_path, mi):
     from PIL import Image
-    from relight.render import read_exr
+    from relight.imageio import read_exr
     out = tmp_path / "killed"
     cmd = [sys.executable, "-m", "relight.cli", "generate", "--count", "40", "--res", "24", "--spp", "2",
            "--seed", "9", "--out", str(out), "--quiet"]

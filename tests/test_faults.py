@@ -128,7 +128,7 @@ def wait_for_records(folder, n, proc, timeout=PROCESS_TIMEOUT_S) -> None:
 def check_complete(folder) -> list[dict]:
     """Every record's three files exist and are readable."""
     from relight.dataset import read_manifest
-    from relight.render import read_exr, read_image
+    from relight.imageio import read_exr, read_image
     recs = read_manifest(folder)
     for r in recs:
         assert read_image(os.path.join(folder, r["image"]))[0].shape == (RES, RES, 3)
@@ -509,7 +509,7 @@ def png_dir(tmp_path_factory):
 @pytest.mark.parametrize("case", PNG_CASES, ids=[c[0] for c in PNG_CASES])
 def test_every_png_mode_and_depth_reads_its_true_values(case, png_dir):
     from relight import colour
-    from relight.render import load_image, read_image
+    from relight.imageio import load_image, read_image
     name, depth, _, _, _, want, tol = case
     pixels, encoding, note = load_image(png_dir / f"{name}.png")
     assert encoding == "srgb" and pixels.shape == (6, W, 3)
@@ -536,7 +536,7 @@ def _exr(path, channels: dict):
 
 @pytest.mark.parametrize("kind", ["RGB", "RGBA-half", "R,G,B", "Y"])
 def test_exr_channel_layouts(kind, tmp_path):
-    from relight.render import read_image
+    from relight.imageio import read_image
     value = np.array([0.5, 0.25, 0.125], np.float32)
     img = np.tile(value, (4, 5, 1))
     channels = {"RGB": {"RGB": img},

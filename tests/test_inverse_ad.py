@@ -38,7 +38,8 @@ def _angle_deg(a, b):
 
 
 def _setup(spec):
-    from relight.inverse.optimize import LightRenderer, tangent_move
+    from relight.frames import tangent_move
+    from relight.inverse.objective import LightRenderer
     from relight.scene.build import SceneBuilder
     builder = SceneBuilder(max_templates=2)
     target = builder.render(spec).astype(np.float64)
@@ -49,7 +50,7 @@ def _setup(spec):
 
 def _compare(spec, visibility=True):
     from relight.inverse.ad import ADJacobian, ADSettings, ad_loss_gradient
-    from relight.inverse.optimize import loss_gradient
+    from relight.inverse.objective import loss_gradient
     renderer, target, pan, tilt = _setup(spec)
     r = spec.light.r_m
     _, g_ref = loss_gradient(renderer, target, pan, tilt, r, REF_SPP, REF_SEED, REF_STEP_DEG)
@@ -83,7 +84,7 @@ def test_ad_gradient_without_shadows(mi):
 
 def test_pinhole_matches_mitsuba_sensor(mi):
     from relight.inverse.ad import Pinhole
-    from relight.inverse.optimize import LightRenderer
+    from relight.inverse.objective import LightRenderer
     from relight.scene.build import SceneBuilder
     spec = sphere_scene(res=16, spp=4)
     sensor = LightRenderer(spec, SceneBuilder(max_templates=1)).template(16).scene.sensors()[0]
@@ -120,7 +121,7 @@ def test_bad_gradient_name():
 def test_invert_gradient_ad_end_to_end(mi, tmp_path):
     from relight.cli import main
     from relight.metrics import light_errors
-    from relight.render import write_exr
+    from relight.imageio import write_exr
     from relight.scene.build import SceneBuilder
     spec = sphere_scene(pan_rel_deg=70.0, tilt_deg=40.0, camera_tilt_deg=30.0, res=32, spp=64,
                         rgb=(1.0, 0.8, 0.6))
@@ -142,7 +143,7 @@ def test_vp_jacobian_matches_central_difference_of_the_residual():
     # pure numpy: a render that moves linearly with two parameters; the closed-form
     # colour scale k is re-fitted at every point, as the finite-difference Jacobian does
     from relight.inverse.ad import vp_jacobian
-    from relight.inverse.optimize import colour_fit
+    from relight.inverse.objective import colour_fit
     rng = np.random.default_rng(3)
     target = rng.uniform(0.1, 1.0, (6, 6, 3))
     r0 = target * [1.5, 0.8, 1.1] + rng.normal(0, 0.05, target.shape)

@@ -32,7 +32,8 @@ AD_REL_TOL = 1e-3            # float32 sums over 32x32 pixels, relative to sum |
 
 @pytest.fixture(scope="module")
 def scene(mi):
-    from relight.inverse.optimize import LightRenderer, tangent_move
+    from relight.frames import tangent_move
+    from relight.inverse.objective import LightRenderer
     from relight.scene.build import SceneBuilder
     from relight.scene.sampling import GeneratorConfig, sample_scene
     # a generated room with two objects; light at pan_rel 60, tilt 45 (cast shadows on
@@ -51,7 +52,7 @@ def _angle_deg(a, b):
 
 
 def test_fd_gradient_matches_fine_reference(scene):
-    from relight.inverse.optimize import loss_gradient
+    from relight.inverse.objective import loss_gradient
     spec, target, renderer, pan, tilt = scene
     r = spec.light.r_m
     _, g = loss_gradient(renderer, target, pan, tilt, r, FD_SPP, 1, FD_STEP_DEG)
@@ -65,7 +66,8 @@ def test_fd_gradient_matches_fine_reference(scene):
 
 
 def test_loss_decreases_along_fd_gradient(scene):
-    from relight.inverse.optimize import loss_gradient, residual, tangent_move
+    from relight.frames import tangent_move
+    from relight.inverse.objective import loss_gradient, residual
     spec, target, renderer, pan, tilt = scene
     r = spec.light.r_m
     _, g = loss_gradient(renderer, target, pan, tilt, r, FD_SPP, 1, FD_STEP_DEG)
@@ -78,7 +80,7 @@ def test_loss_decreases_along_fd_gradient(scene):
 
 
 def test_colour_fit_recovers_known_colour(scene):
-    from relight.inverse.optimize import colour_fit
+    from relight.inverse.objective import colour_fit
     spec, _, renderer, _, _ = scene
     rgb = np.array([0.8, 0.55, 0.3])
     coloured = spec.with_light(rgb=rgb)
@@ -132,7 +134,7 @@ def test_ad_colour_gradient_matches_closed_form_and_fd(scene, mi):
 
 def test_tangent_move_is_an_arc_step():
     from relight import frames
-    from relight.inverse.optimize import tangent_move
+    from relight.frames import tangent_move
     for pan, tilt in [(10.0, 30.0), (200.0, 89.0), (0.0, 90.0)]:
         for du, dv in [(1.0, 0.0), (0.0, -2.0), (3.0, 4.0)]:
             p2, t2 = tangent_move(pan, tilt, du, dv)
@@ -145,7 +147,8 @@ def test_tangent_move_is_an_arc_step():
 
 
 def test_downsample_and_colour_fit_closed_forms():
-    from relight.inverse.optimize import InverseError, colour_fit, downsample
+    from relight.errors import InverseError
+    from relight.inverse.objective import colour_fit, downsample
     img = np.arange(4 * 4 * 3, dtype=np.float64).reshape(4, 4, 3)
     np.testing.assert_allclose(downsample(img, 2)[0, 0], img[:2, :2].reshape(-1, 3).mean(0))
     with pytest.raises(InverseError, match="multiple"):

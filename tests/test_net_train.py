@@ -11,6 +11,7 @@ import torch
 
 from relight.cli import main
 from relight.dataset import DatasetError
+from relight.errors import TrainingError
 from relight.net.io import ModelFileError, load_model_file, save_model
 from relight.net.loss import light_loss
 from relight.net.model import LightNet, NetConfig
@@ -66,7 +67,7 @@ def test_resume_equals_uninterrupted(tiny, tmp_path):
     train(cfg2, tmp_path / "straight", progress=False)
     train(cfg1, tmp_path / "cut", progress=False)
     assert train(cfg1, tmp_path / "cut", progress=False)["epoch"] == 1  # the identical command resumes
-    with pytest.raises(DatasetError, match="--resume"):
+    with pytest.raises(TrainingError, match="--resume"):
         train(cfg2, tmp_path / "cut", progress=False)  # other settings: refuses without --resume
     row = train(cfg2, tmp_path / "cut", resume=True, progress=False)
     assert row["epoch"] == 2
@@ -87,7 +88,7 @@ def test_resume_equals_uninterrupted(tiny, tmp_path):
 def test_predict_paths_agree(tiny, model_file, tmp_path):
     """An image given as a linear array, as the PNG write_png makes of it, and as an EXR
     all reach the network as the same 8-bit sRGB pixels."""
-    from relight.render import read_exr, write_exr, write_png
+    from relight.imageio import read_exr, write_exr, write_png
     model = load_model(model_file)
     linear = read_exr(os.path.join(tiny, "exr", "000000.exr"))
     write_png(tmp_path / "a.png", linear)
@@ -107,7 +108,7 @@ def test_predict_paths_agree(tiny, model_file, tmp_path):
 def test_cli_predict_png_jpeg_exr(tiny, model_file, tmp_path, capsys):
     from PIL import Image
 
-    from relight.render import read_exr, write_exr
+    from relight.imageio import read_exr, write_exr
     img_dir = tmp_path / "imgs"
     img_dir.mkdir()
     Image.open(os.path.join(tiny, "images", "000001.png")).resize((50, 40)).save(img_dir / "photo.jpg")
@@ -255,7 +256,7 @@ def test_paper_arch_trains_and_is_recorded(tiny, tmp_path):
     from safetensors import safe_open
     with safe_open(str(tmp_path / "paper" / "best.safetensors"), framework="pt") as f:
         assert f.metadata()["arch"] == "sid2-inception-paper/v1"
-    with pytest.raises(DatasetError, match="arch"):
+    with pytest.raises(TrainingError, match="arch"):
         train(TrainConfig(data_dir=tiny, epochs=1, batch_size=8, res=RES, width=8), tmp_path / "paper", resume=True,
               progress=False)   # an arch change cannot resume
 

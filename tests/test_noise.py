@@ -26,7 +26,7 @@ REFERENCE_SPP = 1024
 
 
 def _render(spec):
-    from relight.render import render_spec
+    from relight.scene.build import render_spec
     return render_spec(spec)
 
 

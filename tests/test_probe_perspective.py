@@ -138,7 +138,7 @@ def test_brighter_clipped_blob_wins_over_a_hot_pixel():
 @pytest.fixture(scope="module")
 def small_render(tmp_path_factory):
     """A 256 x 192 validation render (chrome + gray sphere, clutter) saved as 8-bit PNG."""
-    from relight.render import write_png
+    from relight.imageio import write_png
     from relight.verify import probe_scenes
     scene = probe_scenes.sample_scene(3, width=256, height=192, clutter=True, front=True, fov_deg=40.0)
     path = tmp_path_factory.mktemp("probe") / "scene.png"

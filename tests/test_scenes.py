@@ -31,7 +31,7 @@ def test_examples_are_there():
 
 @pytest.mark.parametrize("path", SCENES, ids=os.path.basename)
 def test_scene_renders_as_its_reference(mi, path):
-    from relight.render import render_spec
+    from relight.scene.build import render_spec
     spec = load_scene(path)
     small = dataclasses.replace(spec, render=dataclasses.replace(spec.render, res=REFERENCE_RES,
                                                                  spp=REFERENCE_SPP))
@@ -51,7 +51,7 @@ def test_user_mesh_path_is_relative_to_the_scene_file():
 
 def test_sphere_right_is_lit_on_the_image_right(mi):
     """The conventions' check: pan_rel 90 lights the sphere's right half (image right)."""
-    from relight.render import render_spec
+    from relight.scene.build import render_spec
     spec = load_scene(os.path.join(REPO, "scenes", "sphere_right.json"))
     small = dataclasses.replace(spec, render=dataclasses.replace(spec.render, res=48, spp=16))
     img = render_spec(small).mean(-1)

@@ -121,6 +121,15 @@ def scheduler(text: str):
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def add_scheduler_option(parser, work: str = "the images") -> None:
+    """``--scheduler local:N | ADDRESS`` of a per-image verb (default: this process)."""
+    parser.add_argument("--scheduler", type=scheduler, default=None, metavar="local:N|ADDRESS",
+                        help=f"run {work} on Dask: local:N (N worker processes on this machine, one "
+                             "per GPU when there are GPUs) or the address of a running scheduler "
+                             "(tcp://host:8786; workers must see the files at the same paths); the "
+                             "same output as the default, this process")
+
+
 def bounded_rgb(text: str) -> tuple[float, float, float]:
     """``R,G,B``: three finite numbers in [0, 1e6], the largest at least 1e-6."""
     values = rgb(text)

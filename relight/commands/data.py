@@ -34,6 +34,10 @@ def add_commands(sub) -> None:
                         "--out at the same path (default: this process, see --workers)")
     g.add_argument("--config", default=None, help="JSON file of generator settings")
     g.add_argument("--mesh-dir", default=None, help="folder of your own .obj/.ply meshes (z up)")
+    g.add_argument("--preset", choices=["sid2", "mid"], default="sid2",
+                   help="sid2 (default): the paper's SID2-style images; mid: a MID-like set (indoor rooms, "
+                        "chrome + gray sphere, a flash above the camera turned to 25 directions; --count is "
+                        "the number of rooms, 25 images each; --config takes its settings; see README)")
     g.add_argument("--quiet", action="store_true", help="no progress bar")
     g.set_defaults(func=cmd_generate)
 
@@ -49,7 +53,26 @@ def add_commands(sub) -> None:
     r.set_defaults(func=cmd_render)
 
 
+def cmd_generate_mid(args) -> int:
+    from relight.fileio import check_outputs
+    from relight.mid import generate_mid, mid_config
+    cfg = mid_config(args.config, res=args.res, spp=args.spp, max_depth=args.max_depth,
+                     refused={"--workers": args.workers != 1, "--scheduler": args.scheduler,
+                              "--sampler": args.sampler, "--colour-prior": args.colour_prior,
+                              "--mesh-dir": args.mesh_dir, "--target-rmse": args.target_rmse})
+    check_outputs([args.out], [args.config])
+    stats = generate_mid(args.out, args.count, seed=args.seed, cfg=cfg, progress=not args.quiet,
+                         threads=args.threads)
+    print(f"{args.out}: {stats.scenes_written} rooms written ({stats.images} images, "
+          f"{stats.failed_probe} without a procedure ground truth), {stats.scenes_skipped} already there")
+    print(f"images: {os.path.join(args.out, 'images')}  masked: {os.path.join(args.out, 'masked')}  "
+          f"manifest: {os.path.join(args.out, 'manifest.jsonl')}")
+    return 0
+
+
 def cmd_generate(args) -> int:
+    if args.preset == "mid":
+        return cmd_generate_mid(args)
     from relight.dataset import generate
     from relight.fileio import check_outputs
     from relight.scene.sampling import GeneratorConfig
@@ -78,7 +101,8 @@ def cmd_render(args) -> int:
     import dataclasses
 
     from relight.fileio import check_file_target, check_outputs
-    from relight.render import ImageError, render_spec, write_exr, write_png
+    from relight.imageio import ImageError, write_exr, write_png
+    from relight.scene.build import render_spec
     from relight.scene.spec import load_scene
     ext = os.path.splitext(args.out)[1].lower()
     if ext not in (".png", ".exr"):

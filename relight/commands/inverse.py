@@ -7,7 +7,8 @@ import os
 import sys
 
 from relight.commands import argtypes as at
-from relight.inverse.jobs import SPLITS, Job, dataset_jobs, invert_jobs, write_trace_csv
+from relight.dataset import SPLIT_CHOICES as SPLITS
+from relight.inverse.jobs import Job, dataset_jobs, invert_jobs, write_trace_csv
 
 
 def add_commands(sub) -> None:
@@ -36,6 +37,7 @@ def add_commands(sub) -> None:
                         "'ad' automatic differentiation with shadow-edge terms (relight.inverse.ad)")
     v.add_argument("--seed", type=at.seed, default=None, help="sampler seed of the fit (default 1)")
     v.add_argument("--quiet", action="store_true", help="no progress bar")
+    at.add_scheduler_option(v, "the fits")
     v.set_defaults(func=cmd_invert)
 
     b = sub.add_parser("baseline", help="classical colour-constancy baselines (colour only)",
@@ -47,6 +49,7 @@ def add_commands(sub) -> None:
     b.add_argument("--split", choices=SPLITS, default="test", help="dataset split (default test)")
     b.add_argument("--limit", type=at.limit, default=None, help="first N images of the split")
     b.add_argument("--out", required=True, help="predictions file to write")
+    at.add_scheduler_option(b, "the estimates")
     b.set_defaults(func=cmd_baseline)
 
 
@@ -74,7 +77,8 @@ def cmd_invert(args) -> int:
         jobs = [Job(spec.id, args.scene, args.image, spec.camera.tilt_deg)]
     overrides = {"max_iters": args.max_iters, "time_budget_s": args.time_budget, "seed": args.seed}
     cfg = InvertConfig(fit_radius=args.fit_radius, gradient=args.gradient, **{k: v for k, v in overrides.items() if v is not None})
-    results = invert_jobs(jobs, args.init, cfg, progress=not args.quiet, model_path=args.model)
+    results = invert_jobs(jobs, args.init, cfg, progress=not args.quiet, model_path=args.model,
+                          scheduler=args.scheduler)
     settings = {"init": args.init, "max_iters": cfg.max_iters, "time_budget_s": cfg.time_budget_s,
                 "fit_radius": cfg.fit_radius, "seed": cfg.seed, "gradient": cfg.gradient,
                 "levels": [dataclasses.asdict(lv) for lv in cfg.levels]}
@@ -92,19 +96,13 @@ def cmd_invert(args) -> int:
 
 
 def cmd_baseline(args) -> int:
-    from tqdm import tqdm
-
-    from relight.inverse.colour_baselines import estimate, write_colour_predictions
+    from relight.inverse.colour_baselines import estimate_jobs, write_colour_predictions
     from relight.fileio import check_file_target, check_outputs
-    from relight.render import read_image
     check_outputs([args.out], [args.data])
     check_file_target(args.out)
     jobs = dataset_jobs(args.data, args.split, args.limit)
     check_outputs([args.out], [j.image_path for j in jobs] + [j.scene_path for j in jobs])
-    entries = []
-    for job in tqdm(jobs, desc=args.name, unit="img", disable=len(jobs) < 50):
-        rgb = estimate(args.name, read_image(job.image_path)[0])
-        entries.append({"id": job.id, "rgb": [float(c) for c in rgb]})
+    entries = estimate_jobs(args.name, jobs, scheduler=args.scheduler)
     write_colour_predictions(args.out, entries, dataset=os.path.abspath(args.data), method=args.name)
     print(f"{args.out}: {len(entries)} colour estimates ({args.name}, colour only)")
     return 0

@@ -1,4 +1,4 @@
-"""``relight train``, ``relight evaluate`` and ``relight predict``."""
+"""``relight train``, ``relight calibrate``, ``relight evaluate`` and ``relight predict``."""
 from __future__ import annotations
 
 import os
@@ -40,8 +40,29 @@ def add_commands(sub) -> None:
     t.add_argument("--resume", action="store_true",
                    help="continue the run in --out with changed settings (e.g. more --epochs); "
                         "re-running the identical command resumes without it")
+    t.add_argument("--init", default=None, metavar="MODEL",
+                   help="fine-tune this model file (e.g. relight/models/sid2_small.safetensors): its network "
+                        "and weights are the starting point (--arch/--width ignored, --res must match)")
+    t.add_argument("--images", choices=["visible", "masked"], default="visible",
+                   help="MID-like datasets: train on the images as rendered (visible spheres) or on the "
+                        "copies with both spheres painted out (default visible)")
     t.add_argument("--quiet", action="store_true", help="no progress bar")
     t.set_defaults(func=cmd_train)
+
+    c = sub.add_parser("calibrate", help="fit the direction-confidence (kappa) head on a held-out split",
+                       description="Refit the kappa head of a trained model on the direction errors of a "
+                                   "held-out split (network frozen; vMF negative log-likelihood, early "
+                                   "stopping and temperature on a part of the split kept out of the fit) "
+                                   "and write the calibrated model file.")
+    c.add_argument("--model", "--run", dest="model", required=True,
+                   help="model .safetensors or training run folder (its best.safetensors)")
+    c.add_argument("--data", required=True, help="dataset folder")
+    c.add_argument("--split", default="val", choices=["train", "val", "test", "all"],
+                   help="held-out split to fit on (default val; never the split you report on)")
+    c.add_argument("--mode", default="head", choices=["head", "last", "temperature"],
+                   help="refit the whole kappa head (default), only its last layer, or only a temperature")
+    c.add_argument("--out", required=True, help="calibrated model file to write (.safetensors)")
+    c.set_defaults(func=cmd_calibrate)
 
     e = sub.add_parser("evaluate", help="the paper's error tables of a model on a dataset split",
                        description="Evaluate a model (default: the shipped one) on DATA; write report.md "
@@ -51,6 +72,7 @@ def add_commands(sub) -> None:
     e.add_argument("--split", default="test", choices=["train", "val", "test", "all"],
                    help="which records (default test; 'all' for a fresh test-only dataset)")
     e.add_argument("--out", required=True, help="report folder")
+    at.add_scheduler_option(e, "the network")
     e.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("predict", help="predict light direction and colour of images",
@@ -67,9 +89,10 @@ def cmd_train(args) -> int:
     import dataclasses
     from relight.fileio import check_folder_target, check_outputs
     from relight.net.train import TrainConfig, train
-    check_outputs([args.out], [args.data])
+    check_outputs([args.out], [args.data, args.init])
     check_folder_target(args.out)
-    cfg = TrainConfig(data_dir=args.data, epochs=args.epochs, batch_size=args.batch_size, lr=float(args.lr),
+    cfg = TrainConfig(data_dir=args.data, init=os.path.abspath(args.init) if args.init else None,
+                      image_key="image_masked" if args.images == "masked" else "image", epochs=args.epochs, batch_size=args.batch_size, lr=float(args.lr),
                       res=args.res, seed=args.seed, flip=not args.no_flip, plateau_patience=args.patience,
                       threads=args.torch_threads, workers=args.workers,
                       max_minutes=args.max_minutes, width=args.width, arch=args.arch,
@@ -79,6 +102,24 @@ def cmd_train(args) -> int:
     if row:
         print(f"{args.out}: epoch {row['epoch']}, val loss {row['val_loss']:.4f}, val mean direction "
               f"{row['val_direction_deg']:.2f} deg; weights {os.path.join(args.out, 'best.safetensors')}")
+    return 0
+
+
+def cmd_calibrate(args) -> int:
+    from relight.fileio import check_file_target, check_outputs
+    from relight.net.calibrate import CalibrationConfig, calibrate_model_file
+    model_file = os.path.join(args.model, "best.safetensors") if os.path.isdir(args.model) else args.model
+    check_outputs([args.out], [args.data, args.model, model_file])
+    check_file_target(args.out)
+    rep = calibrate_model_file(args.model, args.data, args.out, CalibrationConfig(split=args.split, mode=args.mode))
+    b, a = rep["check_before"], rep["check_after"]
+    fmt = (lambda s: f"NLL {s['nll_mean']:.3f}, 90% cone covers {100 * s['cone90_coverage']:.1f}%, Spearman "
+                     + ("-" if s["spearman_cone90_error"] is None else f"{s['spearman_cone90_error']:.2f}"))
+    print(f"{rep['n_images']} images of split {rep['split']} ({rep['n_fit']} fit / {rep['n_check']} check "
+          f"predictions), mode {args.mode}, {rep['best_step']} steps, temperature {rep['temperature']:.3f}")
+    print(f"check part before: {fmt(b)}")
+    print(f"check part after:  {fmt(a)}")
+    print(f"wrote {args.out}")
     return 0
 
 
@@ -94,7 +135,7 @@ def cmd_evaluate(args) -> int:
     torch.set_num_threads(1)
     model = load_model(args.model)
     name = args.model or "shipped model"
-    tables = evaluate(model, args.data, args.out, split=args.split, model_name=name)
+    tables = evaluate(model, args.data, args.out, split=args.split, model_name=name, scheduler=args.scheduler)
     print(metrics.format_tables({"overall": tables["overall"], "tilt_levels": tables["tilt_levels"],
                                  "pan_levels": tables["pan_levels"]}).split("**Table 2")[0].rstrip())
     import json

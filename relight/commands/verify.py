@@ -22,6 +22,7 @@ def add_commands(sub) -> None:
     c.add_argument("--limit", type=at.limit, default=None, help="compare only the first N predictions")
     c.add_argument("--max-columns", type=at.columns, default=8, help="columns of figure3 (default 8)")
     c.add_argument("--quiet", action="store_true", help="no progress bar")
+    at.add_scheduler_option(c, "the re-renders")
     c.set_defaults(func=cmd_compare)
 
     f = sub.add_parser("figure", help="figures of predictions: spheres (paper Fig. 4), pole (Fig. 5)")
@@ -63,7 +64,8 @@ def cmd_compare(args) -> int:
     check_folder_target(out)
     check_out(out)
     comparison = compare_predictions(args.predictions, data_dir=args.data, limit=args.limit,
-                                     skip_bad=args.skip_bad, progress=not args.quiet)
+                                     skip_bad=args.skip_bad, progress=not args.quiet,
+                                     scheduler=args.scheduler)
     check_outputs([out], [comparison.dataset_dir], replaces_folder=True)
     if not comparison.items:
         first = f" (first: {comparison.bad[0][0]}: {comparison.bad[0][1]})" if comparison.bad else ""
@@ -135,7 +137,7 @@ def cmd_pole(args) -> int:
     from relight import backend
     from relight.predictions import entry_for_image, read_predictions
     from relight.fileio import check_file_target, check_outputs
-    from relight.render import ImageError, read_image, write_png
+    from relight.imageio import ImageError, read_image, write_png
     from relight.verify.figures import pole_overlay
     check_outputs([args.out], [args.image, args.predictions])
     if not args.out.lower().endswith(".png"):

@@ -14,7 +14,7 @@ Interior term (:class:`ShadingAD`). Camera and geometry never move during a fit,
 the camera paths (primary hit, and ``bounces`` BSDF-sampled indirect vertices with
 their throughput) are traced once per level and kept. For each candidate light the
 direct light at every path vertex, ``I f_r cos / |p - x|^2 V`` with ``I = r^2`` white
-(the :class:`~relight.inverse.optimize.LightRenderer` convention), is a Dr.Jit program
+(the :class:`~relight.inverse.objective.LightRenderer` convention), is a Dr.Jit program
 of ``(du, dv, dr_rel)``: the light position is computed from them inside the traced
 program, ``p = r (1 + dr_rel) normalize(d + (du e_pan + dv e_tilt) pi / 180)``, and Dr.Jit
 forward mode gives one image column per parameter. The visibility ``V`` is a step
@@ -90,7 +90,7 @@ class ADSettings:
 
     def __post_init__(self):
         if self.bounces < 0 or self.edge_samples_per_px < 1:
-            from relight.inverse.optimize import InverseError
+            from relight.errors import InverseError
             raise InverseError(f"ad settings: bounces >= 0 and edge_samples_per_px >= 1 expected, got {self}")
 
 
@@ -426,7 +426,7 @@ class ADJacobian:
                        seed: int, n_par: int = 2) -> np.ndarray:
         """``d(render)/d(theta)`` ``(res, res, 3, n_par)`` for the white light of
         :meth:`LightRenderer.render`, theta = (du_deg, dv_deg[, dr_rel])."""
-        pan_deg = self.renderer.spec.camera.pan_deg + pan_rel_deg
+        pan_deg = frames.pan_from_rel(pan_rel_deg, self.renderer.spec.camera.pan_deg)
         _, jac = self.shading(res, spp, seed).jacobian(pan_deg, tilt_deg, r_m, n_par)
         if self.settings.visibility:
             p, dp = light_frame(pan_deg, tilt_deg, r_m)
@@ -439,9 +439,9 @@ class ADJacobian:
 
     def residual_jacobian(self, target: np.ndarray, pan_rel_deg: float, tilt_deg: float, r_m: float,
                           spp: int, seed: int, n_par: int = 2) -> np.ndarray:
-        """Jacobian ``(n_residuals, n_par)`` of :func:`relight.inverse.optimize.residual`
+        """Jacobian ``(n_residuals, n_par)`` of :func:`relight.inverse.objective.residual`
         (the colour scale ``k`` re-fitted, as the finite differences do)."""
-        from relight.inverse.optimize import colour_fit
+        from relight.inverse.objective import colour_fit
         res = target.shape[0]
         render = self.renderer.render(pan_rel_deg, tilt_deg, r_m, res, spp, seed)
         d_render = self.image_jacobian(pan_rel_deg, tilt_deg, r_m, res, spp, seed, n_par)
@@ -467,8 +467,8 @@ def ad_loss_gradient(renderer, target: np.ndarray, pan_rel_deg: float, tilt_deg:
                      spp: int, seed: int, settings: ADSettings | None = None,
                      estimator: ADJacobian | None = None) -> tuple[float, np.ndarray]:
     """``(loss, 2 J^T r)``: the AD gradient of the loss per arc degree along (pan, tilt),
-    like :func:`relight.inverse.optimize.loss_gradient`."""
-    from relight.inverse.optimize import residual
+    like :func:`relight.inverse.objective.loss_gradient`."""
+    from relight.inverse.objective import residual
     est = estimator or ADJacobian(renderer, settings)
     vec, loss, _ = residual(renderer, target, pan_rel_deg, tilt_deg, r_m, spp, seed)
     jac = est.residual_jacobian(target, pan_rel_deg, tilt_deg, r_m, spp, seed, 2)

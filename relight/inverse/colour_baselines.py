@@ -124,6 +124,39 @@ def estimate(name: str, image: np.ndarray) -> np.ndarray:
     return method(image)
 
 
+def estimate_jobs(name: str, jobs: list, progress: bool = True, scheduler=None) -> list[dict]:
+    """Colour-only predictions entries ``{"id", "rgb"}`` of ``name`` on each job's image
+    (:class:`relight.inverse.jobs.Job`), in job order. ``scheduler``: estimate shards of
+    images on Dask (``local:N`` or an address, :mod:`relight.engine`); the same entries."""
+    from tqdm import tqdm
+    if name not in METHODS:
+        raise ColourBaselineError(f"unknown colour baseline {name!r}; valid: {', '.join(METHODS)}")
+    paths = [(job.id, job.image_path) for job in jobs]
+    if scheduler is None:
+        return [_entry(name, *p) for p in tqdm(paths, desc=name, unit="img",
+                                               disable=not progress or len(paths) < 50)]
+    from relight import engine
+    entries = [None] * len(paths)
+
+    def on_result(shard, values):
+        for k, entry in zip(shard, values):
+            entries[k] = entry
+    engine.map_shards(scheduler, _estimate_shard, (name, paths), list(range(len(paths))), on_result,
+                      mitsuba=False, progress=progress)
+    return entries
+
+
+def _entry(name: str, image_id: str, image_path: str) -> dict:
+    from relight.imageio import read_image
+    return {"id": image_id, "rgb": [float(c) for c in estimate(name, read_image(image_path)[0])]}
+
+
+def _estimate_shard(context, shard: list[int]) -> list[dict]:
+    """Engine task (in a worker process): the entries of images ``shard``."""
+    name, paths = context
+    return [_entry(name, *paths[k]) for k in shard]
+
+
 # --- colour-only predictions files ---------------------------------------------------
 
 def write_colour_predictions(path, entries: list[dict], dataset: str | None = None, **meta) -> None:

@@ -2,7 +2,7 @@
 
 Input encoding (the same at training and prediction time):
     1. an 8-bit sRGB image (the dataset PNGs; EXR/linear input is first encoded with
-       :func:`relight.render.to_srgb8`, exactly as the PNGs were written);
+       :func:`relight.imageio.to_srgb8`, exactly as the PNGs were written);
     2. centre-cropped to a square (the shorter side; dataset images are square so
        this is a no-op) and resized to ``res x res`` with PIL's bilinear filter
        (antialiased when shrinking; a no-op when the size already matches);
@@ -57,7 +57,7 @@ def flip_image(x: torch.Tensor) -> torch.Tensor:
 
 
 def _read_png_srgb8(path: str) -> np.ndarray:
-    from relight.render import ImageError, read_srgb8
+    from relight.imageio import ImageError, read_srgb8
     if not os.path.isfile(path):
         raise DatasetError(f"dataset image missing: {path}")
     try:
@@ -77,8 +77,10 @@ class LightDataset(Dataset):
     """
 
     def __init__(self, data_dir: str | os.PathLike, split: str = "train", res: int = 128,
-                 flip: bool = False, seed: int = 0, cache: bool = True, records: list[dict] | None = None):
+                 flip: bool = False, seed: int = 0, cache: bool = True, records: list[dict] | None = None,
+                 image_key: str = "image"):
         self.data_dir = os.fspath(data_dir)
+        self.image_key = image_key   # the record field naming the image ("image_masked": MID-like, spheres out)
         self.split = split
         self.records = split_records(read_manifest(self.data_dir) if records is None else records, split)
         self.res, self.flip, self.seed, self.cache = res, flip, seed, cache
@@ -100,7 +102,10 @@ class LightDataset(Dataset):
         key = rec["id"]
         img = self._cache.get(key)
         if img is None:
-            raw = _read_png_srgb8(safe_join(self.data_dir, rec["image"]))
+            if not isinstance(rec.get(self.image_key), str):
+                raise DatasetError(f"record {key!r} has no {self.image_key!r} image (only MID-like datasets "
+                                   "have masked copies)")
+            raw = _read_png_srgb8(safe_join(self.data_dir, rec[self.image_key]))
             img = (prepare_srgb8(raw, self.res).numpy().transpose(1, 2, 0) * 255.0 + 0.5).astype(np.uint8)
             if self.cache:
                 self._cache[key] = img

@@ -121,17 +121,58 @@ def _stats_table(errors: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+class _Rows:
+    """The items ``indices`` of a dataset, as a dataset (what :func:`run_model` reads)."""
+
+    def __init__(self, dataset, indices: list[int]):
+        self.dataset, self.indices = dataset, list(indices)
+
+    def __len__(self) -> int:
+        return len(self.indices)
+
+    def image_srgb8(self, i: int) -> np.ndarray:
+        return self.dataset.image_srgb8(self.indices[i])
+
+
+def _model_shard(context, shard: list[int]):
+    """Engine task (in a worker process): :func:`run_model` on items ``shard`` (one
+    batch) with the client's torch thread count."""
+    model, dataset, batch_size, torch_threads = context
+    torch.set_num_threads(torch_threads)
+    return run_model(model, _Rows(dataset, shard), batch_size, with_kappa=True)
+
+
+def run_model_on_engine(model, dataset: LightDataset, batch_size: int, scheduler, progress: bool = True):
+    """``run_model(..., with_kappa=True)`` on Dask (``local:N`` or an address): one task
+    a batch (the same batches as :func:`run_model`, so the same numbers), run with this
+    process's torch thread count, gathered here in item order."""
+    from relight import engine
+    parts = {}
+    engine.map_shards(scheduler, _model_shard, (model, dataset, batch_size, torch.get_num_threads()),
+                      list(range(len(dataset))), lambda shard, value: parts.__setitem__(shard[0], value),
+                      mitsuba=False, shard_size=batch_size, progress=progress)
+    values = [parts[k] for k in sorted(parts)]
+    y = np.concatenate([v[0] for v in values]) if values else np.zeros((0, 7))
+    has_kappa = bool(values) and values[0][1] is not None
+    return y, np.concatenate([v[1] for v in values]) if has_kappa else None
+
+
 def evaluate(model, data_dir: str | os.PathLike, out_dir: str | os.PathLike, split: str = "test",
-             model_name: str = "", batch_size: int = 64) -> dict:
+             model_name: str = "", batch_size: int = 64, scheduler=None) -> dict:
     """Evaluate ``model`` on ``split`` of ``data_dir``; write the report folder.
 
+    ``scheduler``: run the network on Dask (``local:N`` or an address, one task a
+    batch, :mod:`relight.engine`); the report is written here, the same as without it.
     Returns ``error_tables`` (nested dict of statistics, degrees) with ``n``.
     """
     data_dir, out_dir = os.fspath(data_dir), os.fspath(out_dir)
     dataset = LightDataset(data_dir, split, model.config.res, cache=False)
     if len(dataset) == 0:
         raise DatasetError(f"{data_dir}: no records in split {split!r} (try --split all)")
-    y_pred, kappa = run_model(model, dataset, batch_size, with_kappa=True)
+    if scheduler is None:
+        y_pred, kappa = run_model(model, dataset, batch_size, with_kappa=True)
+    else:
+        y_pred, kappa = run_model_on_engine(model, dataset, batch_size, scheduler)
     truth = dataset.truth()
     pan, tilt, rgb = decode_outputs(y_pred, truth["camera_tilt_deg"])
     errors = metrics.light_errors(pan, tilt, rgb, truth["pan_rel_deg"], truth["tilt_deg"], truth["rgb"])

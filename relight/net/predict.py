@@ -3,7 +3,7 @@
 Images of any size are brought to the network's input encoding exactly as at
 training time (:func:`relight.net.data.prepare_srgb8`): linear images (EXR, or
 arrays from a renderer) are first encoded to 8-bit sRGB with
-:func:`relight.render.to_srgb8` -- the way the dataset PNGs were written -- while
+:func:`relight.imageio.to_srgb8` -- the way the dataset PNGs were written -- while
 PNG/JPEG files are taken as 8-bit sRGB already. The output 7-vector is decoded with
 the stated camera tilt (photographs: the paper assumes 45 degrees) and camera pan 0.
 
@@ -100,7 +100,7 @@ def predict_arrays(model, images_linear: list[np.ndarray], camera_tilt_deg: list
         kappa head, ``kappa`` and ``cone90_deg`` (radius of the 90% cone, degrees);
         ``colour_reliable`` = False for a grayscale image (:func:`is_achromatic`).
     """
-    from relight.render import to_srgb8
+    from relight.imageio import to_srgb8
     res = model.config.res
     inputs, achromatic = [], []
     for k, img in enumerate(images_linear):
@@ -115,15 +115,15 @@ def predict_arrays(model, images_linear: list[np.ndarray], camera_tilt_deg: list
 
 def read_input(path: str, res: int) -> tuple[torch.Tensor, str]:
     """Network input of an image file and how it was read (see
-    :func:`relight.render.load_image`: every PNG mode and bit depth, JPEG, EXR).
-    Raises :class:`relight.render.ImageError` for unreadable files."""
+    :func:`relight.imageio.load_image`: every PNG mode and bit depth, JPEG, EXR).
+    Raises :class:`relight.imageio.ImageError` for unreadable files."""
     x, note, _ = _read_input(path, res)
     return x, note
 
 
 def _read_input(path: str, res: int) -> tuple[torch.Tensor, str, bool]:
     """:func:`read_input` and whether the image is grayscale (:func:`is_achromatic`)."""
-    from relight.render import read_srgb8
+    from relight.imageio import read_srgb8
     srgb8, note = read_srgb8(path)
     return prepare_srgb8(srgb8, res), note, is_achromatic(srgb8)
 
@@ -131,7 +131,7 @@ def _read_input(path: str, res: int) -> tuple[torch.Tensor, str, bool]:
 def list_images(paths: list[str]) -> list[str]:
     """Files named, plus the images (PNG/JPEG/EXR) directly inside named folders, sorted."""
     from relight.fileio import is_temp_name
-    from relight.render import ImageError
+    from relight.imageio import ImageError
     out = []
     for p in paths:
         if os.path.isdir(p):

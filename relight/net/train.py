@@ -77,6 +77,11 @@ class TrainConfig:
         arch: encoder, ``"small"`` or ``"paper"`` (:data:`relight.net.model.ARCHES`).
         kappa_detach: the kappa head reads the embedding detached (default; see
             :attr:`relight.net.model.NetConfig.kappa_detach`).
+        init: a model file to fine-tune (its network and weights replace ``arch``,
+            ``width`` and the initialisation; ``res`` must match it). The val loss of
+            the loaded model before any step is written to settings.json (``init_val_loss``).
+        image_key: the record field of the input image (``image_masked``: the MID-like
+            set's copies with the spheres painted out).
         max_minutes: stop after the first epoch that ends past this wall time
             (minutes from the start of this invocation; None: no limit). A later
             ``resume`` continues from there.
@@ -99,6 +104,8 @@ class TrainConfig:
     max_minutes: float | None = None
     arch: str = "small"
     kappa_detach: bool = True
+    init: str | None = None
+    image_key: str = "image"
 
     def __post_init__(self):
         for name in ("epochs", "batch_size", "res", "threads"):
@@ -118,13 +125,15 @@ class TrainConfig:
             raise TrainingError(f"arch must be one of {', '.join(ARCHES)}, got {self.arch!r}")
         if not (isinstance(self.lr, float) and 0 < self.lr < 1):
             raise TrainingError(f"lr must be in (0, 1), got {self.lr!r}")
+        if self.image_key not in ("image", "image_masked"):
+            raise TrainingError(f"image_key must be 'image' or 'image_masked', got {self.image_key!r}")
 
     def to_dict(self) -> dict:
         return asdict(self)
 
 
 def _check_resume_compatible(saved: dict, cfg: TrainConfig) -> None:
-    for key in ("res", "batch_size", "seed", "width", "flip", "arch", "kappa_detach"):
+    for key in ("res", "batch_size", "seed", "width", "flip", "arch", "kappa_detach", "init", "image_key"):
         if key in saved and saved[key] != getattr(cfg, key):
             raise TrainingError(f"cannot resume: {key} was {saved[key]!r} in this run, now {getattr(cfg, key)!r}")
 
@@ -275,6 +284,15 @@ def _train_rank0(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, d
         lock.release()
 
 
+def _dataset_loss(model, dataset: LightDataset, cfg: TrainConfig) -> float:
+    """The paper's loss of ``model`` over ``dataset`` (eval mode, no augmentation): what
+    the log's ``val_loss`` measures after each epoch."""
+    y, _ = run_model(model, dataset, cfg.batch_size * 4, with_kappa=True)
+    target = torch.from_numpy(np.stack([dataset.target(i) for i in range(len(dataset))])).float()
+    with torch.no_grad():
+        return float(light_loss(torch.from_numpy(y), target, cfg.loss_weights))
+
+
 def _same_run(saved: dict, cfg: TrainConfig) -> bool:
     """True when ``saved`` (settings.json) holds the settings of ``cfg`` (the identical command)."""
     now = json.loads(json.dumps(cfg.to_dict()))
@@ -299,14 +317,22 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, 
         except (OSError, ValueError):
             saved = {}
         if not (isinstance(saved, dict) and _same_run(saved, cfg)):
-            raise DatasetError(f"{out_dir} already holds a run with other settings; add --resume to "
+            raise TrainingError(f"{out_dir} already holds a run with other settings; add --resume to "
                                "continue it with these settings or use a new --out")
         resume = True   # the identical command: continue where it stopped
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
 
-    train_set = LightDataset(cfg.data_dir, cfg.train_split, cfg.res, flip=cfg.flip, seed=cfg.seed)
-    val_set = LightDataset(cfg.data_dir, cfg.val_split, cfg.res)
+    init_model = None
+    if cfg.init is not None:   # a bad model file fails here, before any work
+        from relight.net.io import load_model_file
+        init_model = load_model_file(cfg.init)
+        if init_model.config.res != cfg.res:
+            raise TrainingError(f"--init model takes {init_model.config.res} px inputs; give --res "
+                                f"{init_model.config.res}")
+    train_set = LightDataset(cfg.data_dir, cfg.train_split, cfg.res, flip=cfg.flip, seed=cfg.seed,
+                             image_key=cfg.image_key)
+    val_set = LightDataset(cfg.data_dir, cfg.val_split, cfg.res, image_key=cfg.image_key)
     if ddp is not None:
         _ddp_agree(train_set), _ddp_agree(val_set)
     if len(train_set) == 0:
@@ -315,7 +341,8 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, 
     state = _load_checkpoint(ckpt_path) if resume and os.path.exists(ckpt_path) else None
     if state is not None:
         _check_resume_compatible(state["settings"], cfg)
-    model = LightNet(net_config(cfg, state["settings"] if state is not None else None))
+    model = init_model.train() if init_model is not None else \
+        LightNet(net_config(cfg, state["settings"] if state is not None else None))
     optimiser = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     scheduler = torch.optim.lr_scheduler.ReduceLROnPlateau(optimiser, mode="min", factor=0.1,
                                                            patience=cfg.plateau_patience)
@@ -331,6 +358,18 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, 
             raise DatasetError(f"{ckpt_path}: checkpoint does not match this network "
                                f"({str(exc).splitlines()[0][:100]}); delete it to start over") from None
     settings = cfg.to_dict() | {"out_dir": out_dir, "parameters": count_parameters(model)}
+    if init_model is not None:   # the starting point: the loaded model's val loss before any step
+        if state is None:
+            start_set = val_set if len(val_set) else LightDataset(cfg.data_dir, cfg.train_split, cfg.res,
+                                                                  records=train_set.records,
+                                                                  image_key=cfg.image_key)
+            settings["init_val_loss"] = _dataset_loss(model, start_set, cfg)
+        else:
+            try:
+                with open(os.path.join(out_dir, SETTINGS)) as f:
+                    settings["init_val_loss"] = json.load(f).get("init_val_loss")
+            except (OSError, ValueError):
+                pass
     if writer:
         write_json(os.path.join(out_dir, SETTINGS), settings)
     net = DistributedDataParallel(_KappaForward(model)) if ddp is not None else None
@@ -357,7 +396,8 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, 
             if ddp is not None:
                 _ddp_agree(train_set), _ddp_agree(val_set)
         evaluation_set = val_set if len(val_set) else LightDataset(cfg.data_dir, cfg.train_split, cfg.res,
-                                                                   records=train_set.records)
+                                                                   records=train_set.records,
+                                                                   image_key=cfg.image_key)
         train_set.epoch = epoch
         if ddp is None:
             sampler = _epoch_order(len(train_set), cfg.seed, epoch)

@@ -58,9 +58,9 @@ def load_image(path: str, linear: bool = False) -> tuple[np.ndarray, float | Non
     if not os.path.exists(path):
         raise ProbeError(f"image not found: {path}")
     if path.lower().endswith(".exr"):
-        from relight.render import read_exr
+        from relight.imageio import read_exr
         return np.asarray(read_exr(path), np.float64), None, "linear (EXR)"
-    from relight.render import load_image as read_any   # every PNG mode and depth, JPEG
+    from relight.imageio import load_image as read_any   # every PNG mode and depth, JPEG
     pixels, _, note = read_any(path)
     bits = 16 if note.startswith("16-bit") else 8
     rgb = pixels.astype(np.float64)

@@ -200,7 +200,7 @@ def write_qa(path: str, result: ProbeResult, title: str = "") -> None:
     reflected direction toward the light (red arrow); on the right, each sphere enlarged
     with the same marks; below, the numbers."""
     import cv2
-    from relight.render import to_srgb8
+    from relight.imageio import to_srgb8
     cam = result.camera
     image = result.chrome_image if result.chrome_image is not None else result.diffuse_image
     # dark photographs are brightened for display (by up to 64x, as the caption says)

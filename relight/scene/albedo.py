@@ -27,17 +27,14 @@ import functools
 
 import numpy as np
 
+from relight.colour import srgb_decode
+
 PRIORS: tuple[str, ...] = ("hsv", "munsell", "mixture")
 DEFAULT_PRIOR = "hsv"
 ALBEDO_MIN = 0.05          # texture albedo range (linear)
 ALBEDO_MAX = 0.9
 OBJECT_RANGE = (0.1, 0.85)  # the hsv prior's object reflectance range, per channel
 MUNSELL_Y_RANGE = (0.03, 0.9)  # luminous reflectance of the Munsell chips kept
-
-
-def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
-    from relight.colour import srgb_decode
-    return srgb_decode(c)
 
 
 def _hsv_to_rgb(h: np.ndarray, s: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -78,7 +75,7 @@ def texture_colours(rng: np.random.Generator, n: int, prior: str = "hsv") -> lis
         val = rng.uniform(0.25, 1.0, n)
         if n > 1 and abs(val[0] - val[1]) < 0.25:
             val[1] = val[0] - 0.35 if val[0] > 0.6 else val[0] + 0.35
-        lin = ALBEDO_MIN + (ALBEDO_MAX - ALBEDO_MIN) * _srgb_to_linear(_hsv_to_rgb(hue, sat, val))
+        lin = ALBEDO_MIN + (ALBEDO_MAX - ALBEDO_MIN) * srgb_decode(_hsv_to_rgb(hue, sat, val))
         return _round(np.clip(lin, ALBEDO_MIN, ALBEDO_MAX))
     if prior == "munsell":
         table = munsell_albedos()

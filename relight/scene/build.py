@@ -25,9 +25,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from relight import backend, frames
+from relight import backend, frames, render
 from relight.scene import bsdf as rough_bsdf
-from relight.scene import noise, shapes, textures
+from relight.scene import shapes, textures
 from relight.scene.spec import ObjectSpec, SceneFileError, SceneSpec
 
 N_OBJECT_SLOTS = 3          # the generator places 1-3 objects
@@ -119,8 +119,7 @@ def wall_to_world(k: int, n_walls: int, inradius_m: float, height_m: float,
                   rotation_deg: float) -> np.ndarray:
     """4x4 matrix placing Mitsuba's ``rectangle`` ([-1,1]^2, normal +z) as wall ``k``,
     its normal facing the room centre."""
-    theta_rad = math.radians(rotation_deg + k * 360.0 / n_walls)
-    outward = np.array([math.cos(theta_rad), math.sin(theta_rad), 0.0])
+    outward = frames.rotation_z(rotation_deg + k * 360.0 / n_walls)[:, 0]
     inward, up = -outward, np.array([0.0, 0.0, 1.0])
     tangent = np.cross(up, inward)  # local x; x * y = z holds: tangent x up = inward
     half_width = inradius_m * math.tan(math.pi / n_walls)
@@ -134,9 +133,7 @@ def wall_to_world(k: int, n_walls: int, inradius_m: float, height_m: float,
 
 def _object_vertices(obj: ObjectSpec, mesh: shapes.Mesh) -> tuple[np.ndarray, np.ndarray]:
     """World-space vertices and normals of an object: scale, yaw about +Z, translate."""
-    yaw_rad = math.radians(obj.yaw_deg)
-    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
-    rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    rot = frames.rotation_z(obj.yaw_deg)
     v = (mesh.vertices.astype(np.float64) * obj.size_m) @ rot.T
     v[:, 0] += obj.position_m[0]
     v[:, 1] += obj.position_m[1]
@@ -163,13 +160,8 @@ class SceneTemplate:
         scene = {
             "type": "scene",
             "integrator": {"type": "path", "max_depth": key.max_depth},
-            "sensor": {
-                "type": "perspective", "fov": 40.0, "fov_axis": "x",
-                "to_world": mi.ScalarTransform4f().look_at(origin=[20, 0, 5], target=[0, 0, 0], up=[0, 0, 1]),
-                "film": {"type": "hdrfilm", "width": key.res, "height": key.res,
-                         "rfilter": {"type": "box"}, "pixel_format": "rgb"},
-                "sampler": {"type": key.sampler, "sample_count": 1},
-            },
+            "sensor": render.sensor(key.res, 40.0, key.sampler, mi.ScalarTransform4f().look_at(
+                origin=[20, 0, 5], target=[0, 0, 0], up=[0, 0, 1])),   # pose and fov: set by apply
             "light": {"type": "point", "position": [0.0, 0.0, 30.0],
                       "intensity": {"type": "rgb", "value": [1.0, 1.0, 1.0]}},
             "floor": {"type": "rectangle",
@@ -242,9 +234,14 @@ class SceneTemplate:
 
     def render(self, spp: int, seed: int) -> np.ndarray:
         """Render the current state: ``(res, res, 3)`` float32 linear RGB."""
-        mi = backend.mitsuba()
-        spp = noise.exact_spp(self.key.sampler, int(spp))
-        return np.array(mi.render(self.scene, spp=spp, seed=int(seed)), dtype=np.float32)
+        return render.render_scene(self.scene, spp, seed, self.key.sampler)
+
+    def render_under(self, position_m, intensity, spp: int, seed: int) -> np.ndarray:
+        """Move the point light to ``position_m`` with radiant ``intensity`` (W/sr per
+        channel), then render as :meth:`render`; the light stays there."""
+        self.set_light(position_m, intensity)
+        self.params.update()
+        return self.render(spp, seed)
 
 
 def texture(params: dict, size: int) -> np.ndarray:
@@ -292,3 +289,15 @@ def build_naive(spec: SceneSpec) -> SceneTemplate:
     template = SceneTemplate(template_key(spec, meshes))
     template.apply(spec, meshes)
     return template
+
+
+_builder = None
+
+
+def render_spec(spec: SceneSpec) -> np.ndarray:
+    """Render a scene spec with a process-wide :class:`SceneBuilder` that reuses loaded
+    scenes; returns linear ``(res, res, 3)`` float32."""
+    global _builder
+    if _builder is None:
+        _builder = SceneBuilder()
+    return _builder.render(spec)

@@ -206,7 +206,7 @@ class SceneSpec:
         light = self.light
         changes = {}
         if pan_rel_deg is not None:
-            changes["pan_deg"] = float(frames.wrap360(self.camera.pan_deg + float(pan_rel_deg)))
+            changes["pan_deg"] = float(frames.pan_from_rel(float(pan_rel_deg), self.camera.pan_deg))
         if tilt_deg is not None:
             changes["tilt_deg"] = float(tilt_deg)
         if rgb is not None:

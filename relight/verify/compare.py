@@ -31,7 +31,7 @@ import numpy as np
 from relight import frames, metrics
 from relight.dataset import DatasetError, load_spec, read_manifest, safe_join
 from relight.predictions import Prediction, PredictionsError, read_predictions
-from relight.render import ImageError, read_exr
+from relight.imageio import ImageError, read_exr
 from relight.scene.spec import SceneFileError
 from relight.verify.imagemetrics import image_errors
 
@@ -168,9 +168,7 @@ def compare_one(builder, task: Task, noise_seed_offset: int = NOISE_SEED_OFFSET)
     t0 = time.perf_counter()
     template = builder.template_for(spec)               # ground-truth light applied
     noise = template.render(spp, seed + noise_seed_offset)
-    template.set_light(pred_spec.light.position_m, pred_spec.light.intensity)
-    template.params.update()
-    rerender = template.render(spp, seed)
+    rerender = template.render_under(pred_spec.light.position_m, pred_spec.light.intensity, spp, seed)
     render_s = time.perf_counter() - t0
 
     errs = metrics.light_errors(pred.pan_rel_deg, pred.tilt_deg, np.asarray(pred.rgb),
@@ -188,7 +186,8 @@ BAD_INPUT = (SceneFileError, DatasetError, ImageError, PredictionsError)
 
 def compare_predictions(predictions_path: str | os.PathLike, data_dir: str | None = None,
                         limit: int | None = None, skip_bad: bool = False, progress: bool = True,
-                        builder=None, noise_seed_offset: int = NOISE_SEED_OFFSET) -> Comparison:
+                        builder=None, noise_seed_offset: int = NOISE_SEED_OFFSET,
+                        scheduler=None) -> Comparison:
     """Re-render every prediction of a file and measure its errors.
 
     Every entry is checked first (ids, scene files, EXR paths), so a bad one fails
@@ -201,6 +200,9 @@ def compare_predictions(predictions_path: str | os.PathLike, data_dir: str | Non
         skip_bad: collect bad entries in ``Comparison.bad`` instead of raising.
         progress: progress bar on stderr (shown only when stderr is a terminal).
         builder: a :class:`~relight.scene.build.SceneBuilder` to reuse (default: new).
+        scheduler: render on Dask (``local:N`` or an address, :mod:`relight.engine`):
+            shards of images render in worker processes, the results come back here;
+            the same Comparison as without it.
     Raises:
         CompareError / PredictionsError naming the entry (unless ``skip_bad``).
     """
@@ -238,19 +240,64 @@ def compare_predictions(predictions_path: str | os.PathLike, data_dir: str | Non
         except BAD_INPUT as exc:
             fail(pred, one_line(exc))
 
-    backend.init()
-    builder = builder or SceneBuilder()
     items, render_s, t0 = [], 0.0, time.perf_counter()
-    for task in tqdm(tasks, desc="compare", unit="img", disable=None if progress else True):
-        try:
-            item, seconds = compare_one(builder, task, noise_seed_offset)
-        except BAD_INPUT as exc:
-            fail(task.prediction, one_line(exc))
+    if scheduler is not None:
+        outcomes = _compare_on_engine(scheduler, tasks, noise_seed_offset, progress)
+    else:
+        backend.init()
+        outcomes = _compare_here(builder or SceneBuilder(), tasks, noise_seed_offset, progress)
+    for task, (item, seconds, reason) in zip(tasks, outcomes):
+        if reason is not None:
+            fail(task.prediction, reason)
             continue
         items.append(item)
         render_s += seconds
     return Comparison(predictions_path=os.path.abspath(predictions_path), dataset_dir=dataset_dir,
                       items=items, bad=bad, seconds=time.perf_counter() - t0, render_seconds=render_s)
+
+
+def _outcome(builder, task: Task, noise_seed_offset: int):
+    """``(item, render seconds, None)``, or ``(None, 0, one-line reason)`` for a bad input."""
+    try:
+        return (*compare_one(builder, task, noise_seed_offset), None)
+    except BAD_INPUT as exc:
+        return None, 0.0, str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+
+
+def _compare_here(builder, tasks: list[Task], noise_seed_offset: int, progress: bool):
+    from tqdm import tqdm
+    for task in tqdm(tasks, desc="compare", unit="img", disable=None if progress else True):
+        yield _outcome(builder, task, noise_seed_offset)
+
+
+def _compare_shard(context, shard: list[int]) -> list:
+    """Engine task (in a worker process): the outcomes of tasks ``shard`` (indices into
+    the context's task list), with one scene builder per process."""
+    from relight import engine
+    from relight.scene.build import SceneBuilder
+    tasks, noise_seed_offset = context
+    builder = engine.worker_cache("scene_builder", SceneBuilder)
+    return [_outcome(builder, tasks[k], noise_seed_offset) for k in shard]
+
+
+def _compare_on_engine(scheduler, tasks: list[Task], noise_seed_offset: int, progress: bool) -> list:
+    """The outcomes of ``tasks`` rendered on Dask, gathered here in task order."""
+    from tqdm import tqdm
+
+    from relight import engine
+    outcomes = [None] * len(tasks)
+    bar = tqdm(total=len(tasks), desc="compare", unit="img", disable=None if progress else True)
+
+    def on_result(shard, values):
+        for k, value in zip(shard, values):
+            outcomes[k] = value
+        bar.update(len(shard))
+    try:
+        engine.map_shards(scheduler, _compare_shard, (tasks, noise_seed_offset), list(range(len(tasks))),
+                          on_result, progress=progress)
+    finally:
+        bar.close()
+    return outcomes
 
 
 def moved_light_predictions(dataset_dir: str | os.PathLike, spread_deg: float = 30.0,

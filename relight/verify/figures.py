@@ -10,7 +10,7 @@
 * :func:`pole_overlay`: the paper's Figure 5: a rendered pole and its cast shadow in
   the image's top-left corner.
 
-Linear images are shown as 8-bit sRGB (:func:`relight.render.to_srgb8`). The
+Linear images are shown as 8-bit sRGB (:func:`relight.imageio.to_srgb8`). The
 difference (c) is the *signed* luminance difference ``Y(b) - Y(a)`` of the linear
 images (Rec. 709 weights), on a diverging map whose limits are symmetric.
 """
@@ -20,7 +20,7 @@ import os
 
 import numpy as np
 
-from relight.render import to_srgb8
+from relight.imageio import to_srgb8
 
 LUMA_709 = np.array([0.2126, 0.7152, 0.0722])
 DIFF_CMAP = "RdBu_r"

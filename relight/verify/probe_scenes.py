@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from relight import backend
+from relight import backend, render
 from relight.probe.geometry import Camera, Sphere, outline_circle
 
 LIGHT_ANGULAR_RADIUS_DEG = 2.0
@@ -173,11 +173,8 @@ def _scene_dict(scene: ProbeScene, spp: int) -> dict:
     d = {
         "type": "scene",
         "integrator": {"type": "path", "max_depth": 6, "hide_emitters": True},
-        "sensor": {"type": "perspective", "fov": scene.fov_deg, "fov_axis": "x",
-                   "to_world": t(to_world),
-                   "film": {"type": "hdrfilm", "width": scene.width, "height": scene.height,
-                            "pixel_format": "rgb"},
-                   "sampler": {"type": "independent", "sample_count": int(spp)}},
+        "sensor": render.sensor(scene.width, scene.fov_deg, to_world=t(to_world), height=scene.height,
+                                rfilter="gaussian"),
         "chrome": {"type": "sphere", "center": list(chrome.centre), "radius": chrome.radius,
                    "bsdf": {"type": "conductor", "material": "Cr"}},
         "gray": {"type": "sphere", "center": list(gray.centre), "radius": gray.radius,
@@ -241,5 +238,5 @@ def render_scene(scene: ProbeScene, spp: int = 64, seed: int = 0) -> np.ndarray:
     isolated fireflies removed (:func:`remove_fireflies`)."""
     mi = backend.mitsuba()
     loaded = mi.load_dict(_scene_dict(scene, spp))
-    image = np.array(mi.render(loaded, spp=int(spp), seed=int(seed)), dtype=np.float32)[..., :3]
+    image = render.render_scene(loaded, spp, seed)[..., :3]
     return remove_fireflies(image)

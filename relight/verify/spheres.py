@@ -21,7 +21,7 @@ import os
 
 import numpy as np
 
-from relight import backend, frames
+from relight import backend, frames, render
 
 SUN_IRRADIANCE = math.pi * math.sqrt(3.0)  # W/m^2 per unit of unit-norm rgb: white -> pi/channel
 SKY_RADIANCE = 0.03            # dim ambient so shadows are dark grey, not black
@@ -43,17 +43,6 @@ KINDS = ("diffuse", "specular", "pole", "ground")
 _scenes: dict = {}
 
 
-def _rotation_z_to(d) -> np.ndarray:
-    """3x3 rotation taking local +Z to the unit vector ``d`` (any orthonormal x, y)."""
-    d = np.asarray(d, dtype=np.float64)
-    d = d / np.linalg.norm(d)
-    helper = np.array([1.0, 0.0, 0.0]) if abs(d[2]) > 0.9 else np.array([0.0, 0.0, 1.0])
-    x = np.cross(helper, d)
-    x /= np.linalg.norm(x)
-    y = np.cross(d, x)
-    return np.stack([x, y, d], axis=1)
-
-
 def _scene(kind: str, res: int):
     """The loaded scene of one probe kind and size (cached)."""
     if kind not in KINDS:
@@ -66,11 +55,7 @@ def _scene(kind: str, res: int):
     scene = {
         "type": "scene",
         "integrator": {"type": "path", "max_depth": 4, "hide_emitters": True},
-        "sensor": {"type": "perspective", "fov": POLE_FOV_DEG if pole_like else SPHERE_FOV_DEG,
-                   "fov_axis": "x",
-                   "film": {"type": "hdrfilm", "width": int(res), "height": int(res),
-                            "pixel_format": "rgba", "rfilter": {"type": "box"}},
-                   "sampler": {"type": "independent", "sample_count": 1}},
+        "sensor": render.sensor(res, POLE_FOV_DEG if pole_like else SPHERE_FOV_DEG, pixel_format="rgba"),
         "sun": {"type": "directional", "direction": [0.0, 0.0, -1.0],
                 "irradiance": {"type": "rgb", "value": [1.0, 1.0, 1.0]}},
         "sky": {"type": "constant", "sampling_weight": SKY_SAMPLING_WEIGHT, "radiance": {"type": "rgb", "value": [SKY_RADIANCE] * 3}},
@@ -119,14 +104,14 @@ def render_probe(kind: str, pan_rel_deg: float, tilt_deg: float, rgb, camera_til
     rgb = rgb / np.linalg.norm(rgb)
     to_light = frames.direction(pan_rel_deg, tilt_deg)
     m = np.eye(4)
-    m[:3, :3] = _rotation_z_to(frames.travel_direction(to_light))  # emitter local +Z = travel
+    m[:3, :3] = frames.frame_z_to(frames.travel_direction(to_light))  # emitter local +Z = travel
     pole_like = kind in ("pole", "ground")
     r_m = POLE_CAMERA_R_M if pole_like else SPHERE_CAMERA_R_M
     params["sun.to_world"] = mi.AffineTransform4f(m)
     params["sun.irradiance.value"] = mi.Color3f(*(SUN_IRRADIANCE * rgb).tolist())
     params["sensor.to_world"] = mi.AffineTransform4f(frames.mitsuba_sensor_to_world(camera_tilt_deg, r_m))
     params.update()
-    return np.array(mi.render(scene, spp=int(spp), seed=int(seed)), dtype=np.float32)
+    return render.render_scene(scene, spp, seed)
 
 
 def sphere_pair(pan_rel_deg: float, tilt_deg: float, rgb, camera_tilt_deg: float,
@@ -187,7 +172,7 @@ def sphere_rows(predictions_path: str, data_dir: str | None, camera_tilt_deg: fl
     from relight import metrics
     from relight.dataset import read_manifest, safe_join
     from relight.predictions import PredictionsError, read_predictions
-    from relight.render import read_exr, read_image
+    from relight.imageio import read_exr, read_image
     from relight.verify.compare import gt_light, resolve_dataset_dir
     pfile = read_predictions(predictions_path)
     records, dataset_dir = {}, None
