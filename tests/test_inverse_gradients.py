@@ -85,7 +85,7 @@ def test_colour_fit_recovers_known_colour(scene):
     rgb = np.array([0.8, 0.55, 0.3])
     coloured = spec.with_light(rgb=rgb)
     target = renderer.builder.render(coloured).astype(np.float64)  # seed = spec.render.seed
-    white = renderer.render(spec.pan_rel_deg, spec.light.tilt_deg, spec.light.r_m, 32,
+    white = renderer.image(spec.pan_rel_deg, spec.light.tilt_deg, spec.light.r_m, 32,
                             spec.render.spp, spec.render.seed)
     k, loss = colour_fit(target, white)
     assert colour_error_deg(k, rgb) < COLOUR_EXACT_DEG
@@ -100,9 +100,9 @@ def test_ad_colour_gradient_matches_closed_form_and_fd(scene, mi):
     spec, target, renderer, _, _ = scene
     tpl = renderer.template(32)
     spp, seed, c0 = 8, 3, np.array([300.0, 250.0, 200.0])
-    white = renderer.render(spec.pan_rel_deg, spec.light.tilt_deg, spec.light.r_m, 32, spp, seed)
+    white = renderer.image(spec.pan_rel_deg, spec.light.tilt_deg, spec.light.r_m, 32, spp, seed)
     unit = white / spec.light.r_m ** 2             # image per unit intensity, per channel
-    unit_grad = renderer.render(spec.pan_rel_deg, spec.light.tilt_deg, spec.light.r_m, 32, spp,
+    unit_grad = renderer.image(spec.pan_rel_deg, spec.light.tilt_deg, spec.light.r_m, 32, spp,
                                 seed + 1000) / spec.light.r_m ** 2
 
     def loss_rendered(c):   # the loss of a real render at intensity c (same seed)

@@ -443,7 +443,7 @@ class ADJacobian:
         (the colour scale ``k`` re-fitted, as the finite differences do)."""
         from relight.inverse.objective import colour_fit
         res = target.shape[0]
-        render = self.renderer.render(pan_rel_deg, tilt_deg, r_m, res, spp, seed)
+        render = self.renderer.image(pan_rel_deg, tilt_deg, r_m, res, spp, seed)
         d_render = self.image_jacobian(pan_rel_deg, tilt_deg, r_m, res, spp, seed, n_par)
         return vp_jacobian(target, render, d_render, colour_fit(target, render)[0])
 

@@ -78,7 +78,7 @@ class LightRenderer:
             tpl = self._templates[res] = self.builder.template_for(spec)
         return tpl
 
-    def render(self, pan_rel_deg: float, tilt_deg: float, r_m: float, res: int, spp: int,
+    def image(self, pan_rel_deg: float, tilt_deg: float, r_m: float, res: int, spp: int,
                seed: int) -> np.ndarray:
         """``(res, res, 3)`` float64 linear render under a white light at (r, pan_rel, tilt)."""
         key = (pan_rel_deg, tilt_deg, r_m, res, spp, seed)
@@ -107,7 +107,7 @@ def residual(renderer: LightRenderer, target: np.ndarray, pan_rel_deg: float, ti
              r_m: float, spp: int, seed: int) -> tuple[np.ndarray, float, np.ndarray]:
     """Variable-projection residual ``(I - k R) / |I|`` (flat), its loss ``|.|^2`` and the
     colour scale ``k`` (3,), rendering at the target's size."""
-    render = renderer.render(pan_rel_deg, tilt_deg, r_m, target.shape[0], spp, seed)
+    render = renderer.image(pan_rel_deg, tilt_deg, r_m, target.shape[0], spp, seed)
     k, loss = colour_fit(target, render)
     norm = math.sqrt(float(np.sum(target * target))) or 1.0
     return ((target - k * render) / norm).ravel(), loss, k

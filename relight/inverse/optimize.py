@@ -306,7 +306,7 @@ def invert(spec: SceneSpec, image: np.ndarray, init=None, cfg: InvertConfig | No
         target = run.target(cfg.grid_res)
         scored = []
         for pan, tilt in grid_starts(cfg):
-            render = renderer.render(pan, tilt, r0, cfg.grid_res, cfg.grid_spp, cfg.seed)
+            render = renderer.image(pan, tilt, r0, cfg.grid_res, cfg.grid_spp, cfg.seed)
             k, loss = colour_fit(target, render)
             scored.append((loss, pan, tilt, k))
         scored.sort(key=lambda x: x[0])
@@ -348,7 +348,7 @@ def ad_loss_gradient(renderer: LightRenderer, target: np.ndarray, pan_rel_deg: f
     from relight import backend
     mi, dr = backend.mitsuba(), backend.drjit()
     res = target.shape[0]
-    k, loss = colour_fit(target, renderer.render(pan_rel_deg, tilt_deg, r_m, res, spp, seed))
+    k, loss = colour_fit(target, renderer.image(pan_rel_deg, tilt_deg, r_m, res, spp, seed))
     tpl = renderer.template(res)
     position = tpl.params["light.position"]
     dr.enable_grad(position)
