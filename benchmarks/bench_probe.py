@@ -30,9 +30,8 @@ TARGETS = {"renders, circle given": (0.5, 2.0), "renders with clutter, automatic
 
 
 def _angle_deg(a, b) -> float:
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    return float(np.degrees(np.arctan2(np.linalg.norm(np.cross(a, b)), a @ b)))
-
+    from relight.metrics import angle_deg
+    return float(angle_deg(a, b))
 
 def _probe(path: str, **kw):
     from relight.probe.run import ProbeConfig, run_probe

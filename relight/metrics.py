@@ -37,10 +37,19 @@ STAT_LABELS = {"mean": "Mean", "median": "Median", "trimean": "Trimean",
                "best25": "Best 25%", "worst25": "Worst 25%", "max": "Max"}
 
 
-def _angle_deg(a, b) -> np.ndarray:
-    """Angle in degrees, [0, 180], between vectors ``(..., 3)`` (broadcast)."""
-    cross = np.linalg.norm(np.cross(a, b), axis=-1)
+def angle_deg(a, b) -> np.ndarray:
+    """Angle in degrees, [0, 180], between vectors ``(..., n)`` of any length (broadcast),
+    as ``atan2(|a x b|, a . b)``: accurate at small angles, unlike ``acos``.
+
+    >>> float(angle_deg([1.0, 0.0, 0.0], [0.0, 2.0, 0.0])), float(angle_deg([1.0, 1.0], [1.0, 0.0]))
+    (90.0, 45.0)
+    """
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
     dot = np.sum(a * b, axis=-1)
+    if a.shape[-1] == 3 and b.shape[-1] == 3:
+        cross = np.linalg.norm(np.cross(a, b), axis=-1)
+    else:   # |a x b| = sqrt(|a|^2 |b|^2 - (a . b)^2) in any dimension
+        cross = np.sqrt(np.maximum(np.sum(a * a, axis=-1) * np.sum(b * b, axis=-1) - dot * dot, 0.0))
     return np.degrees(np.arctan2(cross, dot))
 
 
@@ -80,7 +89,7 @@ def direction_error_deg(pan_pred_deg, tilt_pred_deg, pan_gt_deg, tilt_gt_deg) ->
     >>> round(float(direction_error_deg(0.0, 60.0, 90.0, 60.0)), 6)   # acos(0.75)
     41.409622
     """
-    return _angle_deg(direction(pan_pred_deg, tilt_pred_deg), direction(pan_gt_deg, tilt_gt_deg))
+    return angle_deg(direction(pan_pred_deg, tilt_pred_deg), direction(pan_gt_deg, tilt_gt_deg))
 
 
 def colour_error_deg(rgb_pred, rgb_gt) -> np.ndarray:
@@ -95,7 +104,7 @@ def colour_error_deg(rgb_pred, rgb_gt) -> np.ndarray:
     >>> round(float(colour_error_deg([1.0, 1.0, 0.0], [1.0, 0.0, 0.0])), 9)
     45.0
     """
-    return _angle_deg(_unit(rgb_pred, "rgb_pred"), _unit(rgb_gt, "rgb_gt"))
+    return angle_deg(_unit(rgb_pred, "rgb_pred"), _unit(rgb_gt, "rgb_gt"))
 
 
 def _unit(v, name: str) -> np.ndarray:

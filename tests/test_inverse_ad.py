@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 
 import numpy as np
 import pytest
@@ -33,9 +32,8 @@ VP_JACOBIAN_TOL = 1e-7          # float64 central difference, h = 1e-6
 
 
 def _angle_deg(a, b):
-    c = float(np.dot(a, b) / (np.linalg.norm(a) * np.linalg.norm(b)))
-    return math.degrees(math.acos(np.clip(c, -1.0, 1.0)))
-
+    from relight.metrics import angle_deg
+    return float(angle_deg(a, b))
 
 def _setup(spec):
     from relight.frames import tangent_move

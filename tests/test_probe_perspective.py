@@ -21,9 +21,8 @@ RENDER_DIR_TOL_DEG = 2.0          # small render, automatic detection
 
 
 def _angle(a, b):
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    return math.degrees(math.atan2(np.linalg.norm(np.cross(a, b)), a @ b))
-
+    from relight.metrics import angle_deg
+    return float(angle_deg(a, b))
 
 def _sphere_at(camera, x, y, angular_radius_deg, distance=5.0):
     """The sphere whose centre projects to pixel (x, y), seen under the given angular radius."""

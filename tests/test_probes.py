@@ -16,9 +16,7 @@ DATA = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "ps
 
 
 def _angle(a, b):
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    return np.degrees(np.arctan2(np.linalg.norm(np.cross(a, b)), a @ b))
-
+    return float(metrics.angle_deg(a, b))
 
 def _sphere(light, rgb=(1.0, 0.8, 0.6), shape=(160, 200), circle=probes.Circle(100.0, 80.0, 60.0)):
     normals, _ = probes.sphere_normals(shape, circle)

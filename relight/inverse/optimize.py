@@ -57,7 +57,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from relight import frames
+from relight import frames, metrics
 from relight.scene.spec import SceneSpec
 from relight.errors import InverseError
 from relight.inverse.objective import LightRenderer, colour_fit, downsample, jacobian, moved, residual
@@ -274,7 +274,7 @@ def pick_starts(scored, cfg: InvertConfig) -> list[tuple[float, float]]:
         if len(kept) == cfg.grid_keep or loss > cfg.grid_loss_factor * scored[0][0]:
             break
         d = frames.direction(pan, tilt)
-        if all(math.degrees(math.acos(np.clip(d @ frames.direction(p, t), -1, 1))) >= cfg.grid_separation_deg
+        if all(metrics.angle_deg(d, frames.direction(p, t)) >= cfg.grid_separation_deg
                for p, t in kept):
             kept.append((pan, tilt))
     return kept
