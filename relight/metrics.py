@@ -266,8 +266,9 @@ def _table(title: str, key_header: str, groups: dict, stats, key_label) -> list[
     return lines + [""]
 
 
-def format_tables(tables: dict, stats=("mean", "median")) -> str:
-    """Markdown text of the paper's Tables 1-3 from :func:`error_tables` (degrees, 2 decimals).
+def format_tables(tables: dict, stats=("mean", "median"), only_table1: bool = False) -> str:
+    """Markdown text of the paper's Tables 1-3 from :func:`error_tables` (degrees, 2 decimals);
+    Table 1 alone with ``only_table1`` (what the commands print).
 
     Table 1: overall (rows: one per stat). Table 2: tilt levels L1..L3 x stat.
     Table 3: pan levels front/right/back/left x stat. Every row shows its n;
@@ -291,6 +292,8 @@ def format_tables(tables: dict, stats=("mean", "median")) -> str:
 
     lines = _table("Table 1. Overall errors (degrees)", "", {"all": tables["overall"]},
                    stats, str)
+    if only_table1:
+        return "\n".join(lines).rstrip()
     lines += _table("Table 2. Errors by light tilt level (degrees)", "Tilt level",
                     tables["tilt_levels"], stats, tilt_label)
     lines += _table("Table 3. Errors by light pan relative to the camera, tilt in [30, 70] "

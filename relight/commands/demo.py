@@ -45,7 +45,7 @@ def cmd_demo(args) -> int:
     generate(data, args.count, seed=0, cfg=GeneratorConfig(res=args.res, spp=args.spp))
     print(f"\n2/3 predict their lights with the shipped network -> {evaluation}", flush=True)
     tables = evaluate(load_model(None), data, evaluation, split="all", model_name="shipped model")
-    print(metrics.format_tables({"overall": tables["overall"]}).rstrip())
+    print(metrics.format_tables(tables, only_table1=True))
     print(f"\n3/3 re-render every scene under its predicted light -> {report}", flush=True)
     predictions = os.path.join(evaluation, "predictions.json")
     comparison = compare_predictions(predictions, data_dir=data)

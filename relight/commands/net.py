@@ -136,8 +136,7 @@ def cmd_evaluate(args) -> int:
     model = load_model(args.model)
     name = args.model or "shipped model"
     tables = evaluate(model, args.data, args.out, split=args.split, model_name=name, scheduler=args.scheduler)
-    print(metrics.format_tables({"overall": tables["overall"], "tilt_levels": tables["tilt_levels"],
-                                 "pan_levels": tables["pan_levels"]}).split("**Table 2")[0].rstrip())
+    print(metrics.format_tables(tables, only_table1=True))
     import json
     with open(os.path.join(args.out, "metrics.json")) as f:
         doc = json.load(f)
