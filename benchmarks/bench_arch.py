@@ -6,6 +6,11 @@ absolute milliseconds move with its load; the paper / small ratios hold). The mi
 is the latency of an idle core; the median includes the load of the moment.
 
     .venv/bin/python benchmarks/bench_arch.py [--threads 1 2] [--repeats 60]
+
+With ``--data DIR`` it then trains both encoders for the same wall time (``--minutes``,
+same data, seed and settings) and scores each on a test set (``--test DIR``, all of it;
+default: DIR's val split): the equal-time accuracy comparison that chooses the shipped
+encoder. Runs go to ``--out`` and resume like ``relight train``.
 """
 from __future__ import annotations
 
@@ -58,11 +63,38 @@ def _train_img_s(net: LightNet, threads: int, steps: int, batch: int = 16) -> fl
     return batch / statistics.median(times[1:])
 
 
+def equal_time(data: str, test: str | None, minutes: float, res: int, out: str) -> None:
+    """Train each encoder for ``minutes`` of wall time and print its test errors."""
+    from relight.net.evaluate import evaluate
+    from relight.net.predict import load_model
+    from relight.net.train import TrainConfig, train
+    print(f"\n## equal training time: {minutes:g} min each, {res} px, data {data}")
+    print("| arch | epochs | val loss | test n | direction mean / median | colour mean / median |")
+    print("|---|---:|---:|---:|---|---|")
+    for arch in ARCHES:
+        run = os.path.join(out, f"{arch}-{res}px-{minutes:g}min")
+        row = train(TrainConfig(data_dir=data, epochs=1000, res=res, arch=arch, max_minutes=minutes),
+                    run, resume=os.path.isdir(run), progress=False) or {}
+        split = "all" if test else "val"
+        tables = evaluate(load_model(run), test or data, os.path.join(run, "eval"), split=split,
+                          model_name=arch)
+        o = tables["overall"]
+        print(f"| {arch} | {row.get('epoch', '-')} | {row.get('val_loss', float('nan')):.4f} | {o['direction']['n']} | "
+              f"{o['direction']['mean']:.2f} / {o['direction']['median']:.2f} | "
+              f"{o['colour']['mean']:.2f} / {o['colour']['median']:.2f} |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--threads", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--repeats", type=int, default=60)
     ap.add_argument("--train-steps", type=int, default=5)
+    ap.add_argument("--data", default=None, help="dataset: also compare accuracy at equal training time")
+    ap.add_argument("--test", default=None, help="test dataset (default: --data's val split)")
+    ap.add_argument("--minutes", type=float, default=60.0, help="training minutes per encoder")
+    ap.add_argument("--res", type=int, default=RES, help="training image size")
+    ap.add_argument("--out", default=os.path.expanduser("~/relight-data/arch-eqtime"),
+                    help="folder of the training runs")
     args = ap.parse_args()
     torch.manual_seed(0)
     nets = {arch: LightNet(NetConfig.for_arch(arch, res=RES)).eval() for arch in ARCHES}
@@ -89,6 +121,8 @@ def main() -> None:
     print("|---:|---:|---:|")
     for th, lat, tr in ratios:
         print(f"| {th} | {lat:.2f} | {tr:.2f} |")
+    if args.data:
+        equal_time(args.data, args.test, args.minutes, args.res, args.out)
 
 
 if __name__ == "__main__":
