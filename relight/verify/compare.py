@@ -206,8 +206,6 @@ def compare_predictions(predictions_path: str | os.PathLike, data_dir: str | Non
     Raises:
         CompareError / PredictionsError naming the entry (unless ``skip_bad``).
     """
-    from tqdm import tqdm
-
     from relight import backend
     from relight.scene.build import SceneBuilder
     predictions_path = os.fspath(predictions_path)
