@@ -203,3 +203,71 @@ def test_lost_scheduler_stops_with_one_line_and_rerun_resumes(tmp_path, single):
                 "--seed", str(SEED), "--scheduler", "local:1", "--quiet")
     assert proc.returncode == 0, proc.stderr
     _same_files(single, out, 12)
+
+
+# --- threads per worker and GPUs -------------------------------------------------------
+
+def test_local_worker_env_gives_each_worker_one_gpu():
+    from relight.engine import local_worker_env
+    assert local_worker_env(3, ["0", "1"]) == [{"CUDA_VISIBLE_DEVICES": "0"}, {"CUDA_VISIBLE_DEVICES": "1"},
+                                               {"CUDA_VISIBLE_DEVICES": "0"}]
+    assert local_worker_env(2, []) == [{}, {}]
+
+
+def test_cuda_devices_follow_cuda_visible_devices(monkeypatch):
+    from relight import backend
+    for value, expected in (("2,3", ["2", "3"]), ("", []), ("-1", []), ("GPU-5f2e", ["GPU-5f2e"])):
+        monkeypatch.setenv("CUDA_VISIBLE_DEVICES", value)
+        assert backend.cuda_devices() == expected
+
+
+def _infos(scheduler, n, **kw):
+    from relight import engine
+    infos = []
+    engine.map_shards(scheduler, engine.worker_info, None, list(range(n)),
+                      lambda part, value: infos.append(value), progress=False, shard_size=1, **kw)
+    return infos
+
+
+def test_local_workers_get_one_gpu_each_and_cores_over_n_threads(monkeypatch):
+    """Without a GPU too: the local cluster is built as with two GPUs (each worker sees one
+    in CUDA_VISIBLE_DEVICES; Mitsuba then finds none and renders on the CPU)."""
+    from relight import backend, engine
+    monkeypatch.delenv("RELIGHT_THREADS", raising=False)
+    monkeypatch.setattr(backend, "cuda_devices", lambda: ["0", "1"])
+    with engine.client("local:2") as (c, threads):
+        seen = c.run(os.getenv, "CUDA_VISIBLE_DEVICES")
+        assert sorted(seen.values()) == ["0", "1"]
+        assert threads == max(1, (os.cpu_count() or 1) // 2)
+        infos = []
+        engine.run_shards(c, engine.worker_info, None, [[0], [1]], lambda p, r: infos.append(r.value), threads)
+    assert {i["threads"] for i in infos} == {threads}
+
+
+def test_remote_worker_uses_its_dask_threads_unless_told(monkeypatch):
+    """On a cluster reached by address, a worker's Dr.Jit thread count is its Dask thread
+    count (its cores: ``dask worker --nthreads``); ``threads`` (``--threads``) overrides it."""
+    import logging
+    monkeypatch.delenv("RELIGHT_THREADS", raising=False)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=3, processes=True, dashboard_address=None,
+                                  silence_logs=logging.CRITICAL) as cluster:
+        assert {i["threads"] for i in _infos(cluster.scheduler_address, 2)} == {3}
+        assert {i["threads"] for i in _infos(cluster.scheduler_address, 2, threads=2)} == {2}
+
+
+def _gpus():
+    from relight import backend
+    return backend.cuda_devices()
+
+
+@pytest.mark.skipif(not _gpus(), reason="no CUDA GPU")
+def test_gpu_workers_render_on_their_own_gpu_and_match_one_process(tmp_path):
+    gpus = _gpus()
+    infos = _infos(f"local:{len(gpus)}", 2 * len(gpus))
+    assert {i["variant"] for i in infos} == {"cuda_ad_rgb"}
+    assert {i["cuda_visible_devices"] for i in infos} <= set(gpus)
+    one = tmp_path / "one"
+    generate(one, 4, seed=SEED, cfg=CFG, progress=False)   # this process renders on its GPU too
+    dask = tmp_path / "dask"
+    generate(dask, 4, seed=SEED, cfg=CFG, progress=False, scheduler=f"local:{len(gpus)}")
+    _same_files(one, dask, 4)   # on identical GPUs
