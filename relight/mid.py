@@ -392,3 +392,46 @@ def format_table5(results: dict, label: str = "") -> str:
                          + " | ".join(f"{v:.2f}" for v in rows[side]) + " | "
                          + " | ".join(f"{v:.2f}" for v in PAPER_TABLE5[side]) + " |")
     return "\n".join(lines)
+
+
+def predict_split(model, data_dir: str, image_key: str = "image", split: str = "test", res: int | None = None):
+    """A model's predictions on one split of a MID-like dataset: ``(records, pred)`` with
+    ``pred = {pan_rel_deg, tilt_deg, rgb}`` decoded with each record's camera tilt."""
+    from relight.net.data import LightDataset
+    from relight.net.evaluate import decode_outputs, run_model
+    ds = LightDataset(data_dir, split, res or model.config.res, image_key=image_key)
+    if len(ds) == 0:
+        raise DatasetError(f"{data_dir}: no records in split {split!r}")
+    y = run_model(model, ds, 64)
+    pan, tilt, rgb = decode_outputs(y, np.array([r["camera"]["tilt_deg"] for r in ds.records]))
+    return ds.records, {"pan_rel_deg": np.asarray(pan), "tilt_deg": np.asarray(tilt), "rgb": np.asarray(rgb)}
+
+
+def score(records: list[dict], pred: dict) -> dict:
+    """Tables 4 and 5 rows of predictions against both ground truths:
+    ``{truth: {"table4": ..., "table5": ..., "table5_median": ...}}``."""
+    out = {}
+    for which in ("procedure", "physical"):
+        truth = truth_arrays(records, which)
+        err = errors_against(pred, truth)
+        out[which] = {"table4": table4_rows(err), "table5": table5_rows(err, truth),
+                      "table5_median": table5_rows(err, truth, "median")}
+    return out
+
+
+def procedure_vs_physical(records: list[dict], corrected: bool = True) -> dict:
+    """The procedure's ground truth scored against the physical one, split by the
+    physical light's side: ``{"all"|"front"|"back": {"mean"|"median": (pan, tilt, direction, colour)}, "n_*"}``.
+    ``corrected=False`` scores the procedure's directions before the reference-image correction."""
+    phys = truth_arrays(records, "physical")
+    proc = truth_arrays(records, "procedure")
+    if not corrected:
+        proc["pan_rel_deg"] = np.array([r["procedure"]["raw_pan_rel_deg"] for r in records], np.float64)
+        proc["tilt_deg"] = np.array([r["procedure"]["raw_tilt_deg"] for r in records], np.float64)
+    err = errors_against(proc, phys)
+    front = is_front(phys["pan_rel_deg"])
+    out = {}
+    for name, sel in (("all", np.ones(len(front), bool)), ("front", front), ("back", ~front)):
+        out[name] = table4_rows({m: np.asarray(err[m])[sel] for m in TABLE_METRICS})
+        out[f"n_{name}"] = int(sel.sum())
+    return out
