@@ -92,7 +92,8 @@ def cmd_train(args) -> int:
     check_outputs([args.out], [args.data, args.init])
     check_folder_target(args.out)
     cfg = TrainConfig(data_dir=args.data, init=os.path.abspath(args.init) if args.init else None,
-                      image_key="image_masked" if args.images == "masked" else "image", epochs=args.epochs, batch_size=args.batch_size, lr=float(args.lr),
+                      image_key="image_masked" if args.images == "masked" else "image",
+                      epochs=args.epochs, batch_size=args.batch_size, lr=float(args.lr),
                       res=args.res, seed=args.seed, flip=not args.no_flip, plateau_patience=args.patience,
                       threads=args.torch_threads, workers=args.workers,
                       max_minutes=args.max_minutes, width=args.width, arch=args.arch,
