@@ -271,3 +271,37 @@ def test_gpu_workers_render_on_their_own_gpu_and_match_one_process(tmp_path):
     dask = tmp_path / "dask"
     generate(dask, 4, seed=SEED, cfg=CFG, progress=False, scheduler=f"local:{len(gpus)}")
     _same_files(one, dask, 4)   # on identical GPUs
+
+
+def _slow_echo(seconds, shard):
+    time.sleep(seconds)
+    return list(shard)
+
+
+@pytest.mark.slow
+def test_every_shard_value_arrives_once_when_a_worker_is_killed_mid_task():
+    """The engine under every verb: a worker SIGKILLed while its tasks run; Dask re-runs
+    them elsewhere and the client receives each shard's value exactly once."""
+    import cloudpickle
+
+    from relight import engine
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    got, killed = [], []
+
+    def kill(pid):
+        os.kill(pid, signal.SIGKILL)
+        killed.append(time.monotonic())
+    try:
+        with engine.client("local:2") as (c, threads):
+            pids = list(c.run(os.getpid).values())
+            killer = threading.Timer(1.0, kill, (pids[0],))
+            killer.start()
+            engine.run_shards(c, _slow_echo, 0.4, [[i] for i in range(10)],
+                              lambda part, r: got.append((part, r.value, time.monotonic())), threads,
+                              mitsuba=False)
+            killer.join()
+    finally:
+        cloudpickle.unregister_pickle_by_value(sys.modules[__name__])
+    assert killed and killed[0] < got[-1][2]   # the kill came before the last result: mid-run
+    assert sorted(p[0] for p, _, _ in got) == list(range(10))
+    assert all(p == v for p, v, _ in got)

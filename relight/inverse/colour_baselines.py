@@ -137,12 +137,17 @@ def estimate_jobs(name: str, jobs: list, progress: bool = True, scheduler=None) 
                                                disable=not progress or len(paths) < 50)]
     from relight import engine
     entries = [None] * len(paths)
+    bar = tqdm(total=len(paths), desc=name, unit="img", disable=not progress or len(paths) < 50)
 
     def on_result(shard, values):
         for k, entry in zip(shard, values):
             entries[k] = entry
-    engine.map_shards(scheduler, _estimate_shard, (name, paths), list(range(len(paths))), on_result,
-                      mitsuba=False, progress=progress)
+        bar.update(len(shard))
+    try:
+        engine.map_shards(scheduler, _estimate_shard, (name, paths), list(range(len(paths))), on_result,
+                          mitsuba=False, progress=progress)
+    finally:
+        bar.close()
     return entries
 
 
