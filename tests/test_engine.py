@@ -51,6 +51,21 @@ def test_parse_scheduler():
             parse_scheduler(bad)
 
 
+def test_the_engine_imports_no_verb():
+    """Generic: the verbs pass their task functions in; the engine imports none of them."""
+    import ast
+
+    import relight.engine
+    tree = ast.parse(open(relight.engine.__file__).read())
+    names = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module}
+    names |= {f"{n.module}.{a.name}" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module
+              for a in n.names}
+    names |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+    ours = {n for n in names if n.startswith("relight")}
+    assert ours <= {"relight.errors", "relight.errors.EngineError", "relight.errors.RelightError",
+                    "relight", "relight.backend"}, ours
+
+
 def test_shards_cover_indices_once_in_order():
     todo = [0, 2, 3, 5, 7, 8, 9, 10, 11, 40, 41]
     for workers in (1, 2, 5, 100):
@@ -60,6 +75,7 @@ def test_shards_cover_indices_once_in_order():
     assert len(shards(list(range(100)), 1)) == 13    # at most 8 images a task: ceil(100 / 8)
     assert len(shards(list(range(16)), 2)) == 8      # 4 tasks per worker when there are enough
     assert shards([], 3) == []
+    assert shards(list(range(5)), 2, size=2) == [[0, 1], [2, 3], [4]]   # fixed size (evaluate: a batch)
 
 
 def test_local_cluster_is_byte_identical_and_resumes(tmp_path, single):
