@@ -1,13 +1,21 @@
 """Ship a training run as the package's default model, evaluate it and write its card.
 
-    .venv/bin/python scripts/ship_model.py --run RUN --train-data TRAIN --test-data TEST
+    .venv/bin/python scripts/ship_model.py --run RUN --train-data TRAIN --test-data TEST \
+        [--model CALIBRATED.safetensors] [--prior-test hsv=DIR --prior-test munsell=DIR]
 
-1. copies RUN/best.safetensors (weights unchanged) to relight/models/sid2_small.safetensors
-   with its metadata, plus sid2_small.json and the training log sid2_small_log.csv;
+1. copies RUN/best.safetensors (or --model, e.g. the output of ``relight calibrate`` on
+   RUN; weights unchanged) to relight/models/sid2_small.safetensors with its metadata,
+   plus sid2_small.json and the training log sid2_small_log.csv;
 2. runs ``relight evaluate`` with the shipped model on every image of TEST (a set never
-   used for training) into TEST-eval/ (or --eval-out);
+   used for training) into TEST-eval/ (or --eval-out), and on each --prior-test set (a
+   test set of one surface-colour prior) into EVAL-OUT-prior-NAME/;
 3. writes relight/models/MODEL_CARD.md: data, training, and the paper's Tables 1-3 next
-   to ours. ``relight evaluate`` reproduces the card's numbers exactly.
+   to ours, the colour error per prior. ``relight evaluate`` reproduces the card's
+   numbers exactly. Everything the card says of the model and the data (architecture,
+   input size, sampler, noise target, samples per pixel, colour prior) is read from the
+   model file and the datasets' cards.
+
+``--models-dir`` writes the model, its card and files elsewhere (a dry run).
 """
 from __future__ import annotations
 
@@ -22,18 +30,122 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, REPO)
 
 from relight.dataset import read_card, read_manifest  # noqa: E402
+from relight.fileio import atomic_write, write_json, write_text  # noqa: E402
 from relight.net.io import MODELS_DIR, SHIPPED_MODEL, read_model_file, save_model  # noqa: E402
-from relight.net.model import LightNet, count_parameters, flops_per_image  # noqa: E402
+from relight.net.model import LightNet, PaperEncoder, count_parameters, flops_per_image  # noqa: E402
 
 PAPER = {"pan": 10.46, "tilt": 9.21, "direction": 14.22, "colour": 1.02}   # Table 1, SID2
 PAPER_TILT = {"L1": (4.92, 5.14, 7.57, 1.04), "L2": (8.51, 5.14, 11.97, 0.90), "L3": (22.36, 18.33, 28.33, 1.00)}
 PAPER_PAN = {"front": (6.87, 5.10, 9.10, 0.98), "right": (6.24, 5.12, 8.80, 0.96),
              "back": (6.35, 5.09, 9.46, 1.03), "left": (6.01, 5.16, 9.03, 0.97)}
 METRICS = ("pan", "tilt", "direction", "colour")
+GENERATE_FLAGS = ("res", "spp", "target_rmse", "sampler", "colour_prior", "max_depth", "mesh_dir")
+LEGACY_DATASET = {"sampler": "independent", "colour_prior": "hsv"}   # cards written before these fields
 
 
-def ship(run: str, train_data: str) -> dict:
-    config, state, info = read_model_file(os.path.join(run, "best.safetensors"))
+def _copy(src: str, dst: str) -> None:
+    atomic_write(dst, lambda tmp: shutil.copyfile(src, tmp))
+
+
+def dataset_settings(card: dict) -> dict:
+    """Generator settings of a dataset card, with the values of cards written before a
+    field existed (sampler ``independent``, prior ``hsv``) and the samples per pixel
+    the run took (``spp_used``: the card's ``spp``, resolved from the noise target)."""
+    cfg = LEGACY_DATASET | dict(card["config"])
+    cfg["spp_used"] = card.get("spp") or cfg.get("spp")
+    return cfg
+
+
+def noise_text(card: dict) -> str:
+    """How the dataset set its noise, e.g. ``sampler multijitter, 16 spp (noise target:
+    relative RMSE 0.02)`` or ``sampler independent, 32 spp (fixed)``."""
+    cfg = dataset_settings(card)
+    how = "(fixed)" if cfg.get("spp") is not None else f"(noise target: relative RMSE {cfg['target_rmse']:g})"
+    return f"sampler {cfg['sampler']}, {cfg['spp_used']} spp {how}"
+
+
+def generate_command(card: dict, path: str, count: int) -> tuple[str, str]:
+    """``(command, note)``: the ``relight generate`` command that makes a dataset with the
+    card's settings (explicit options for the noise, sampler and colour prior; settings
+    without an option go into ``--config CONFIG.json``, which the note spells out)."""
+    import dataclasses
+
+    from relight.scene.sampling import GeneratorConfig
+    default = json.loads(json.dumps(dataclasses.asdict(GeneratorConfig())))
+    cfg = dataset_settings(card)
+    opts = [f"--count {count}", f"--out {path}", f"--seed {card['seed']}"]
+    if cfg.get("res") != default["res"]:
+        opts.append(f"--res {cfg['res']}")
+    if cfg.get("spp") is not None:
+        opts.append(f"--spp {cfg['spp']}")
+    else:
+        opts.append(f"--target-rmse {cfg['target_rmse']:g}")
+    opts += [f"--sampler {cfg['sampler']}", f"--colour-prior {cfg['colour_prior']}"]
+    if cfg.get("max_depth", default["max_depth"]) != default["max_depth"]:
+        opts.append(f"--max-depth {cfg['max_depth']}")
+    if cfg.get("mesh_dir"):
+        opts.append(f"--mesh-dir {cfg['mesh_dir']}")
+    other = {k: v for k, v in cfg.items() if k in default and k not in GENERATE_FLAGS and v != default[k]}
+    note = ""
+    if other:
+        opts.append("--config CONFIG.json")
+        note = f"CONFIG.json: `{json.dumps(other)}`"
+    return "relight generate " + " ".join(opts), note
+
+
+def _module_lines(doc: str) -> list[str]:
+    """The numbered module lines of an encoder's docstring, without the grid sizes."""
+    import re
+    out = []
+    for line in (doc or "").splitlines():
+        m = re.match(r"\s*(\d)\. (.*?)\s*(->.*)?$", line)
+        if m:
+            out.append(f"{m.group(1)}. {m.group(2)}")
+    return out
+
+
+def architecture_text(config) -> str:
+    """Markdown naming the encoder's modules (one indented line each), read from the class
+    that builds it (:class:`LightNet` for ``small``, :class:`PaperEncoder` for ``paper``)."""
+    if config.arch == "paper":
+        head = ("the paper's five modules at Inception-v3 proportions (`--arch paper`, `PaperEncoder`: "
+                "split, factorised 1 x 7 / 7 x 1 and expanded inception modules with grid reductions)")
+        doc = PaperEncoder.__doc__
+    else:
+        head = ("five modules scaled down for a CPU (`--arch small`; split inception: n x n factorised "
+                "into 1 x n then n x 1)")
+        doc = LightNet.__doc__
+    lines = [ln.replace("``grid``", str(config.grid)) for ln in _module_lines(doc)]
+    if lines and "linear" not in lines[-1]:
+        lines[-1] += f"; then the {config.grid} x {config.grid} grid, flattened, linear"
+    if lines:
+        lines[-1] += f" -> embedding of {config.embed} units"
+    return head + ":\n" + "\n".join(f"  {ln}" for ln in lines)
+
+
+def train_command(s: dict, data_path: str) -> str:
+    """The ``relight train`` command of a run's settings (``settings.json`` / model info):
+    options that differ from the defaults, the architecture and the kappa options always."""
+    w = s["loss_weights"]
+    opts = [f"--data {data_path}", "--out RUN", f"--epochs {s['epochs']}", f"--patience {s['plateau_patience']}"]
+    for key, flag, default in (("batch_size", "--batch-size", 16), ("lr", "--lr", 2e-4), ("res", "--res", 128),
+                               ("seed", "--seed", 0), ("width", "--width", 32), ("workers", "--workers", 0)):
+        if s.get(key, default) != default:
+            opts.append(f"{flag} {s[key]:g}" if isinstance(s[key], float) else f"{flag} {s[key]}")
+    opts.append(f"--torch-threads {s.get('threads', 1)}")
+    opts.append(f"--loss-weights {w['pan']:g},{w['tilt']:g},{w['colour']:g}")
+    if not s.get("flip", True):
+        opts.append("--no-flip")
+    if s.get("max_minutes") is not None:
+        opts.append(f"--max-minutes {s['max_minutes']:g}")
+    opts.append(f"--arch {s.get('arch', 'small')} --kappa-weight {w.get('kappa', 0.0):g}")
+    if not s.get("kappa_detach", True):
+        opts.append("--kappa-into-features")
+    return "relight train " + " ".join(opts)
+
+
+def ship(run: str, train_data: str, model_path: str | None = None, models_dir: str = MODELS_DIR) -> dict:
+    config, state, info = read_model_file(model_path or os.path.join(run, "best.safetensors"))
     rows = list(csv.DictReader(open(os.path.join(run, "log.csv"))))
     best = int(info["epoch"])
     model = LightNet(config)
@@ -45,16 +157,31 @@ def ship(run: str, train_data: str) -> dict:
             "train_images_per_epoch": [int(rows[0]["n_train"]), int(rows[-1]["n_train"])],
             "train_time_s_all_epochs": sum(float(r["epoch_time_s"]) for r in rows),
             "train_time_s_to_best": sum(float(r["epoch_time_s"]) for r in rows[:best]),
-            "train_dataset": {"path": train_data, "seed": card["seed"], "config": card["config"],
+            "train_dataset": {"path": train_data, "seed": card["seed"], "config": card["config"], "spp": card.get("spp"),
                               "records": len(read_manifest(train_data))},
-            "settings": info["settings"], "run": run, "kappa_temperature": info.get("kappa_temperature")}
-    os.makedirs(MODELS_DIR, exist_ok=True)
-    save_model(SHIPPED_MODEL, model, {k: meta[k] for k in ("name", "best_epoch", "best_val_loss",
-                                                             "settings", "train_dataset")})
-    shutil.copy(os.path.join(run, "log.csv"), os.path.join(MODELS_DIR, "sid2_small_log.csv"))
-    with open(os.path.join(MODELS_DIR, "sid2_small.json"), "w") as f:
-        json.dump(meta, f, indent=1)
+            "settings": info["settings"], "run": run, "kappa_temperature": info.get("kappa_temperature"),
+            "kappa_calibration": info.get("kappa_calibration"), "models_dir": models_dir}
+    save_model(os.path.join(models_dir, os.path.basename(SHIPPED_MODEL)), model,
+               {k: meta[k] for k in ("name", "best_epoch", "best_val_loss", "settings", "train_dataset",
+                                     "kappa_temperature", "kappa_calibration") if meta[k] is not None})
+    _copy(os.path.join(run, "log.csv"), os.path.join(models_dir, "sid2_small_log.csv"))
+    write_json(os.path.join(models_dir, "sid2_small.json"), meta)
     return meta
+
+
+def prior_rows(prior_evals: dict) -> str:
+    """Markdown table of the colour (and direction) error on the test set of each prior:
+    ``{name: (test_dir, eval_dir)}``."""
+    lines = ["| Test set (colour prior) | Images | Colour mean | Colour median | Direction mean |",
+             "|---|---:|---:|---:|---:|"]
+    for name, (test_dir, eval_dir) in prior_evals.items():
+        ev = json.load(open(os.path.join(eval_dir, "metrics.json")))
+        o = ev["tables"]["overall"]
+        recorded = dataset_settings(read_card(test_dir))["colour_prior"]
+        label = name if recorded == name else f"{name} (card: {recorded})"
+        lines.append(f"| {label} (`{test_dir}`) | {ev['n']} | {o['colour']['mean']:.2f} | "
+                     f"{o['colour']['median']:.2f} | {o['direction']['mean']:.2f} |")
+    return "\n".join(lines)
 
 
 def level_rows(tables: dict, group: str, paper: dict) -> str:
@@ -66,28 +193,54 @@ def level_rows(tables: dict, group: str, paper: dict) -> str:
     return "\n".join(out)
 
 
-def write_card(meta: dict, eval_dir: str, test_data: str, notes: str) -> str:
+def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_evals: dict | None = None) -> str:
+    """Write MODEL_CARD.md into the models folder and return its text; ``prior_evals``:
+    ``{prior name: (test set, evaluation folder)}``."""
+    from relight.net.model import NetConfig
+    models_dir = meta.get("models_dir", MODELS_DIR)
     ev = json.load(open(os.path.join(eval_dir, "metrics.json")))
     report = open(os.path.join(eval_dir, "report.md")).read().split("\n", 4)[-1].strip()
     if os.path.isfile(os.path.join(eval_dir, "reliability.png")):   # the cones' reliability diagram
-        shutil.copy(os.path.join(eval_dir, "reliability.png"), os.path.join(MODELS_DIR, "sid2_small_reliability.png"))
+        _copy(os.path.join(eval_dir, "reliability.png"), os.path.join(models_dir, "sid2_small_reliability.png"))
         report = report.replace("](reliability.png)", "](sid2_small_reliability.png)")
+    config = NetConfig.from_dict(meta["config"])
+    res = config.res
     overall = ev["tables"]["overall"]
     s = meta["settings"]
     w = s["loss_weights"]
-    train_flags = (f"--arch {s.get('arch', 'small')} --kappa-weight {w.get('kappa', 0.0):g}"
-                   + (" --kappa-into-features" if not s.get("kappa_detach", True) else ""))
-    rows = list(csv.DictReader(open(os.path.join(MODELS_DIR, "sid2_small_log.csv"))))
+    train_cmd_line = train_command(s, meta["train_dataset"]["path"])
+    rows = list(csv.DictReader(open(os.path.join(models_dir, "sid2_small_log.csv"))))
     drops = [f"{float(r['lr']):.0e} after epoch {r['epoch']}" for i, r in enumerate(rows)
              if i and float(r["lr"]) != float(rows[i - 1]["lr"])]
     td = meta["train_dataset"]
+    train_card = {"seed": td["seed"], "config": td["config"], "spp": td.get("spp")}
+    train_cfg = dataset_settings(train_card)
+    train_cmd, train_note = generate_command(train_card, td["path"], td["records"])
     test_card = read_card(test_data)
+    test_cfg = dataset_settings(test_card)
+    test_cmd, test_note = generate_command(test_card, test_data, len(read_manifest(test_data)))
     table1 = "\n".join(f"| {m.capitalize()} | {PAPER[m]:.2f} | {overall[m]['mean']:.2f} | "
                        f"{overall[m]['median']:.2f} |" for m in METRICS)
     kappa_text = ""
     if meta["config"].get("kappa_head"):
         kappa_text = (", and a fourth giving the von Mises-Fisher concentration kappa of the direction "
-                      f"(trained by its NLL, temperature {meta.get('kappa_temperature', 1.0):.3f} fitted on val)")
+                      f"(trained by its NLL, temperature {meta.get('kappa_temperature') or 1.0:.3f} fitted on val)")
+        cal = meta.get("kappa_calibration")
+        if cal:
+            b, a = cal["check_before"], cal["check_after"]
+            rho = (lambda v: "-" if v is None else f"{v:.2f}")
+            kappa_text += (f"; then `relight calibrate --mode {cal['settings']['mode']}` on the {cal['split']} split "
+                           f"of `{cal['data_dir']}` ({cal['n_images']} images, network frozen; kept: {cal['kept']}): "
+                           f"on its check part the 90% cone covered {100 * b['cone90_coverage']:.1f}% -> "
+                           f"{100 * a['cone90_coverage']:.1f}%, Spearman(cone, error) {rho(b['spearman_cone90_error'])} "
+                           f"-> {rho(a['spearman_cone90_error'])}")
+    priors = ""
+    if prior_evals:
+        priors = ("\n## Colour error per surface-colour prior\n"
+                  "The shipped model on a test set of each prior (`relight generate --colour-prior NAME`, all "
+                  "images; degrees):\n\n" + prior_rows(prior_evals) + "\n")
+    data_text = (f"{train_cfg['res']} px, {noise_text(train_card)}, colour prior {train_cfg['colour_prior']}, "
+                 f"depth {train_cfg['max_depth']}")
     card = f"""# Model card: `sid2_small.safetensors`
 
 The paper's regression network (Sial et al., "Light Direction and Color Estimation from
@@ -96,11 +249,11 @@ dataset made by `relight generate`. It is the default model of `relight predict`
 `relight evaluate`. This card is written by `scripts/ship_model.py`.
 
 ## Model
-- Architecture `{meta['arch']}` (`relight/net/model.py`): stem conv + split-inception modules
-  (n x n factorised into 1 x n then n x 1) with pooling, a grid embedding, and three heads:
-  pan (sin/cos), tilt (sin/cos), colour (RGB, softplus){kappa_text}. He-normal initialisation.
-- {meta['parameters']:,} parameters; {meta['gflop_per_image']:.3f} GFLOP per 128 px image (forward).
-- Input: 128 x 128 8-bit sRGB scaled to [0, 1] (PNG/JPEG as is; EXR / linear arrays encoded
+- Architecture `{meta['arch']}` (`relight/net/model.py`), an encoder of {architecture_text(config)}
+- Heads on the embedding: pan (sin/cos), tilt (sin/cos), colour (RGB, softplus){kappa_text}.
+  He-normal initialisation.
+- {meta['parameters']:,} parameters; {meta['gflop_per_image']:.3f} GFLOP per {res} px image (forward).
+- Input: {res} x {res} 8-bit sRGB scaled to [0, 1] (PNG/JPEG as is; EXR / linear arrays encoded
   with `relight.imageio.to_srgb8` first, like the dataset PNGs; other sizes centre-cropped to a
   square and bilinearly resized). Output: the 7-vector of `shared/conventions.md`, decoded
   with the camera tilt (photographs: 45 deg assumed, as in the paper).
@@ -108,16 +261,14 @@ dataset made by `relight generate`. It is the default model of `relight predict`
   header and in `sid2_small.json`; training log `sid2_small_log.csv`.
 
 ## Training data
-- `relight generate --count {td['records']} --out {td['path']} --seed {td['seed']} --spp {td['config']['spp']}`
-  ({td['config']['res']} px, depth {td['config']['max_depth']}; SID2 ranges: light r 20-50 m, tilt 30-90 step 5,
+- `{train_cmd}`{(' (' + train_note + ')') if train_note else ''}
+  ({data_text}; SID2 ranges: light r 20-50 m, tilt 30-90 step 5,
   pan step 1, CCT 2500-10000 K |Duv| <= 0.01; camera r 20 m, tilt 10-70; 1-3 objects).
   The dataset's `train` split ({meta['train_images_per_epoch'][-1]} images) trains, its `val` split drives
   the scheduler and the choice of the best epoch. The paper used 45,000 images.
 
 ## Training
-- `relight train --data {td['path']} --out RUN --epochs {s['epochs']} --patience {s['plateau_patience']} \\
-  --torch-threads {s['threads']} --loss-weights {w['pan']:g},{w['tilt']:g},{w['colour']:g} --max-minutes {s['max_minutes']:g} \\
-  {train_flags}`
+- `{train_cmd_line}`
 - Adam lr {s['lr']:g}, ReduceLROnPlateau factor 0.1 (patience {s['plateau_patience']}) on the val loss,
   batch {s['batch_size']}, horizontal flips (pan_rel -> 360 - pan_rel), loss
   {w['pan']:g} x MSE(pan pair) + {w['tilt']:g} x MSE(tilt pair) + {w['colour']:g} x mean RGB angular error (radians).
@@ -125,8 +276,9 @@ dataset made by `relight generate`. It is the default model of `relight predict`
   loss at epoch {meta['best_epoch']} ({meta['train_time_s_to_best'] / 60:.0f} min). Learning-rate drops: {', '.join(drops) or 'none'}.
 
 ## Test results (fresh test set, never used for training)
-`relight generate --count {len(read_manifest(test_data))} --out {test_data} --seed {test_card['seed']} --spp {test_card['config']['spp']}`
-(same generator settings, another seed), all {ev['n']} images, errors in degrees:
+`{test_cmd}`{(' (' + test_note + ')') if test_note else ''}
+({test_cfg['res']} px, {noise_text(test_card)}, colour prior {test_cfg['colour_prior']}; another seed),
+all {ev['n']} images, errors in degrees:
 
 | Error | Paper SID2 (Table 1, mean) | This model, mean | This model, median |
 |---|---:|---:|---:|
@@ -143,23 +295,22 @@ paper columns first):
 Full report of `relight evaluate`:
 
 {report}
-
+{priors}
 ## Where it falls short, and why
 {notes}
 
 ## Reproduce
 ```
-relight generate --count {td['records']} --out {td['path']} --seed {td['seed']} --spp {td['config']['spp']}
-relight generate --count {len(read_manifest(test_data))} --out {test_data} --seed {test_card['seed']} --spp {test_card['config']['spp']}
-relight train --data {td['path']} --out RUN --epochs {s['epochs']} --patience {s['plateau_patience']} --torch-threads {s['threads']} --loss-weights {w['pan']:g},{w['tilt']:g},{w['colour']:g} --max-minutes {s['max_minutes']:g} {train_flags}
+{train_cmd}
+{test_cmd}
+{train_cmd_line}
 .venv/bin/python scripts/ship_model.py --run RUN --train-data {td['path']} --test-data {test_data} --notes NOTES.md
 ```
 `relight evaluate --data {test_data} --split all --out REPORT` with the shipped model
 reproduces the tables above exactly (inference is deterministic). Training on a CPU is
 repeatable in its settings, not bit for bit (thread scheduling).
 """
-    with open(os.path.join(MODELS_DIR, "MODEL_CARD.md"), "w") as f:
-        f.write(card)
+    write_text(os.path.join(models_dir, "MODEL_CARD.md"), card)
     return card
 
 
@@ -170,14 +321,32 @@ def main() -> int:
     ap.add_argument("--test-data", required=True, help="a fresh dataset never used for training")
     ap.add_argument("--eval-out", default=None, help="evaluation folder (default TEST-eval)")
     ap.add_argument("--notes", default=None, help="markdown file: where the model falls short, and why")
+    ap.add_argument("--model", default=None,
+                    help="model file to ship instead of RUN/best.safetensors (e.g. relight calibrate's output)")
+    ap.add_argument("--prior-test", action="append", default=[], metavar="NAME=DIR",
+                    help="a test set of one surface-colour prior (repeat for each); the card reports the "
+                         "colour error on each")
+    ap.add_argument("--models-dir", default=MODELS_DIR,
+                    help="where the model and its card go (default the package's models folder)")
     args = ap.parse_args()
-    meta = ship(args.run, args.train_data)
+    prior_tests = {}
+    for item in args.prior_test:
+        name, sep, folder = item.partition("=")
+        if not sep or not name or not folder:
+            ap.error(f"--prior-test takes NAME=DIR, got {item!r}")
+        prior_tests[name] = folder
+    meta = ship(args.run, args.train_data, args.model, args.models_dir)
     eval_out = args.eval_out or args.test_data.rstrip("/") + "-eval"
     from relight.net.evaluate import evaluate
     from relight.net.predict import load_model
-    evaluate(load_model(None), args.test_data, eval_out, split="all", model_name="shipped model")
+    shipped = load_model(os.path.join(args.models_dir, os.path.basename(SHIPPED_MODEL)))
+    evaluate(shipped, args.test_data, eval_out, split="all", model_name="shipped model")
+    prior_evals = {}
+    for name, folder in prior_tests.items():
+        prior_evals[name] = (folder, f"{eval_out.rstrip('/')}-prior-{name}")
+        evaluate(shipped, folder, prior_evals[name][1], split="all", model_name=f"shipped model, prior {name}")
     notes = open(args.notes).read().strip() if args.notes else "(no notes given)"
-    print(write_card(meta, eval_out, args.test_data, notes))
+    print(write_card(meta, eval_out, args.test_data, notes, prior_evals))
     return 0
 
 

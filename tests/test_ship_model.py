@@ -1,0 +1,94 @@
+"""scripts/ship_model.py: the model card reads the model's input size, the encoder's
+modules, the datasets' sampler / noise target / samples per pixel and colour prior from
+their metadata, and reports the colour error on a test set of each colour prior."""
+import importlib.util
+import json
+import os
+import sys
+
+import pytest
+import torch
+
+from relight.net.model import NetConfig
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+RES = 32
+
+
+@pytest.fixture(scope="module")
+def ship_model():
+    spec = importlib.util.spec_from_file_location("ship_model", os.path.join(ROOT, "scripts", "ship_model.py"))
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_generate_command_of_a_noise_target_card(ship_model):
+    card = {"seed": 2, "spp": 16, "config": {"res": 128, "spp": None, "target_rmse": 0.02,
+                                             "sampler": "multijitter", "colour_prior": "munsell",
+                                             "split": [0.9, 0.1, 0.0]}}
+    cmd, note = ship_model.generate_command(card, "/data/x", 2500)
+    assert cmd.startswith("relight generate --count 2500 --out /data/x --seed 2 ")
+    assert "--target-rmse 0.02 --sampler multijitter --colour-prior munsell" in cmd
+    assert "--spp" not in cmd and "--res" not in cmd and "None" not in cmd
+    assert "--config CONFIG.json" in cmd and '"split": [0.9, 0.1, 0.0]' in note
+    assert ship_model.noise_text(card) == "sampler multijitter, 16 spp (noise target: relative RMSE 0.02)"
+
+
+def test_generate_command_of_a_legacy_card(ship_model):
+    """Cards written before the sampler and prior fields: independent sampler, hsv prior."""
+    card = {"seed": 1, "config": {"res": 64, "spp": 32, "max_depth": 4}}
+    cmd, note = ship_model.generate_command(card, "d", 10)
+    assert "--res 64 --spp 32 --sampler independent --colour-prior hsv" in cmd
+    assert "--target-rmse" not in cmd and "--config" not in cmd and note == ""
+    assert ship_model.noise_text(card) == "sampler independent, 32 spp (fixed)"
+
+
+def test_architecture_text_names_each_encoders_modules(ship_model):
+    paper = ship_model.architecture_text(NetConfig(arch="paper"))
+    small = ship_model.architecture_text(NetConfig(arch="small"))
+    assert "--arch paper" in paper and "factorised inception (1x7, 7x1)" in paper
+    assert "expanded inception" in paper and "grid reduction" in paper and "32 x 32" not in paper
+    assert "--arch small" in small and "split inception + max pool /2" in small
+    assert "factorised inception" not in small and "embedding of 256 units" in small
+
+
+@pytest.fixture(scope="module")
+def world(tmp_path_factory):
+    from relight.dataset import generate
+    from relight.net.train import TrainConfig, train
+    from relight.scene.sampling import GeneratorConfig
+    root = tmp_path_factory.mktemp("ship")
+    cfg = GeneratorConfig(res=RES, target_rmse=0.05)
+    generate(root / "train", count=8, seed=21, cfg=cfg, progress=False)
+    generate(root / "test", count=4, seed=22, cfg=cfg, progress=False)
+    generate(root / "test-munsell", count=4, seed=23, cfg=GeneratorConfig(res=RES, spp=4, colour_prior="munsell"),
+             progress=False)
+    torch.manual_seed(0)
+    train(TrainConfig(data_dir=str(root / "train"), epochs=1, res=RES, width=8, batch_size=4, train_split="all",
+                      val_split="all"), root / "run", progress=False)
+    return root
+
+
+def test_card_reads_metadata_and_reports_each_prior(ship_model, world, tmp_path, monkeypatch, capsys):
+    models = tmp_path / "models"
+    argv = ["ship_model.py", "--run", str(world / "run"), "--train-data", str(world / "train"),
+            "--test-data", str(world / "test"), "--eval-out", str(tmp_path / "ev"), "--models-dir", str(models),
+            "--prior-test", f"hsv={world / 'test'}", "--prior-test", f"munsell={world / 'test-munsell'}"]
+    monkeypatch.setattr(sys, "argv", argv)
+    assert ship_model.main() == 0
+    capsys.readouterr()
+    card = (models / "MODEL_CARD.md").read_text()
+    assert f"per {RES} px image" in card and f"Input: {RES} x {RES}" in card and "128 px" not in card
+    assert "None" not in card
+    spp = json.load(open(world / "test" / "dataset.json"))["spp"]
+    assert f"sampler multijitter, {spp} spp (noise target: relative RMSE 0.05)" in card
+    assert "--target-rmse 0.05 --sampler multijitter --colour-prior hsv" in card
+    assert "--arch small" in card and "split inception" in card
+    for name, folder in (("hsv", "ev-prior-hsv"), ("munsell", "ev-prior-munsell")):
+        overall = json.load(open(tmp_path / folder / "metrics.json"))["tables"]["overall"]
+        row = next(line for line in card.splitlines() if line.startswith(f"| {name} ("))
+        assert f"| {overall['colour']['mean']:.2f} | {overall['colour']['median']:.2f} |" in row
+    assert (models / "sid2_small.safetensors").is_file() and (models / "sid2_small_log.csv").is_file()
+    # the package's own shipped model is untouched by a run with --models-dir
+    assert not os.path.samefile(models, os.path.join(ROOT, "relight", "models"))
