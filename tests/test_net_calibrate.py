@@ -10,9 +10,9 @@ import torch
 
 from relight import frames
 from relight.cli import main
-from relight.net.calibrate import CalibrationConfig, _raw_kappa, fit_head
+from relight.net.calibrate import CalibrationConfig, fit_head
 from relight.net.io import load_model_file, read_model_file, save_model
-from relight.net.model import KAPPA_INIT, LightNet, NetConfig, _head
+from relight.net.model import LightNet, NetConfig, _head, head_kappa
 from relight.net.uncertainty import spearman
 
 RES = 32
@@ -74,11 +74,11 @@ def test_fit_head_recovers_known_concentration():
     torch.manual_seed(0)
     head = _head(w_true.size, 16, 1)
     with torch.no_grad():
-        before = _raw_kappa(head, check["embedding"]).numpy()
+        before = head_kappa(head, check["embedding"]).numpy()
     best_step, curve = fit_head(head, fit, check, CalibrationConfig(lr=1e-2, weight_decay=0.0, max_steps=1500,
                                                                     patience=200))
     with torch.no_grad():
-        fitted = _raw_kappa(head, check["embedding"]).numpy()
+        fitted = head_kappa(head, check["embedding"]).numpy()
     assert best_step > 0 and min(curve) < curve[0]
     assert spearman(fitted, kappa_check) > RECOVERED_RANK
     assert np.median(np.abs(np.log(fitted / kappa_check))) < RECOVERED_LOG_RATIO

@@ -2,7 +2,6 @@
 with one warning line; the evaluation's per-image table carries kappa and the 90% cone."""
 import csv
 import json
-import os
 
 import numpy as np
 import pytest

@@ -43,7 +43,7 @@ import torch
 
 from relight.errors import DatasetError, TrainingError
 from relight.net.data import LightDataset, flip_image, flip_y
-from relight.net.model import KAPPA_INIT, LOG_KAPPA_RANGE
+from relight.net.model import head_kappa
 from relight.net.uncertainty import direction_from_y, fit_temperature, uncertainty_summary, vmf_nll
 
 MODES = ("head", "last", "temperature")
@@ -123,12 +123,6 @@ def held_out_outputs(model, dataset: LightDataset, flip: bool = True, batch_size
             "image": torch.from_numpy(np.tile(np.arange(n), len(views)))}
 
 
-def _raw_kappa(head, embedding: torch.Tensor) -> torch.Tensor:
-    """Uncalibrated kappa of the head, exactly as :meth:`LightNet.forward_with_kappa`."""
-    log_kappa = head(embedding).squeeze(1) + math.log(KAPPA_INIT)
-    return torch.exp(log_kappa.clamp(*LOG_KAPPA_RANGE))
-
-
 def _cos_error(out: dict) -> torch.Tensor:
     mu = direction_from_y(out["y_pred"], out["camera_tilt_deg"])
     x = direction_from_y(out["y_true"], out["camera_tilt_deg"])
@@ -155,11 +149,11 @@ def fit_head(head: torch.nn.Module, fit: dict, check: dict, cfg: CalibrationConf
 
     def check_nll() -> float:
         with torch.no_grad():
-            return float(vmf_nll(_raw_kappa(head, e_check), cos_check).mean())
+            return float(vmf_nll(head_kappa(head, e_check), cos_check).mean())
     best_state, best, best_step, curve = copy.deepcopy(head.state_dict()), check_nll(), 0, []
     curve.append(best)
     for step in range(1, cfg.max_steps + 1):
-        loss = vmf_nll(_raw_kappa(head, e_fit), cos_fit).mean()
+        loss = vmf_nll(head_kappa(head, e_fit), cos_fit).mean()
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()
@@ -202,7 +196,7 @@ def calibrate_kappa(model, data_dir: str | os.PathLike, cfg: CalibrationConfig =
     head = model.kappa_head
     old_temperature = float(model.kappa_temperature)
     with torch.no_grad():
-        before = _summary((_raw_kappa(head, check["embedding"]) / old_temperature).double().numpy(), angle_check)
+        before = _summary((head_kappa(head, check["embedding"]) / old_temperature).double().numpy(), angle_check)
     best_step, curve, trained_head = 0, [], copy.deepcopy(head.state_dict())
     if cfg.mode in ("head", "last"):
         head.train()
@@ -213,7 +207,7 @@ def calibrate_kappa(model, data_dir: str | os.PathLike, cfg: CalibrationConfig =
             p.requires_grad_(False)
     def with_temperature():
         with torch.no_grad():
-            raw = _raw_kappa(head, check["embedding"]).double().numpy()
+            raw = head_kappa(head, check["embedding"]).double().numpy()
         t = fit_temperature(raw, angle_check)
         return t, _summary(raw / t, angle_check)
     temperature, after = with_temperature()

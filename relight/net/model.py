@@ -327,11 +327,17 @@ class LightNet(nn.Module):
         y = self._light(e)
         if not self.config.kappa_head:
             return y, None
-        log_kappa = self.kappa_head(e.detach() if self.config.kappa_detach else e).squeeze(1) + math.log(KAPPA_INIT)
-        kappa = torch.exp(log_kappa.clamp(*LOG_KAPPA_RANGE))
+        kappa = head_kappa(self.kappa_head, e.detach() if self.config.kappa_detach else e)
         if calibrated:
             kappa = kappa / self.kappa_temperature
         return y, kappa
+
+
+def head_kappa(head: nn.Module, e: torch.Tensor) -> torch.Tensor:
+    """Uncalibrated kappa ``(N,)`` of a kappa head on embeddings ``e`` ``(N, embed)``:
+    ``exp(head(e) + log KAPPA_INIT)``, clamped to [1e-3, 1e5] (:data:`LOG_KAPPA_RANGE`)."""
+    log_kappa = head(e).squeeze(1) + math.log(KAPPA_INIT)
+    return torch.exp(log_kappa.clamp(*LOG_KAPPA_RANGE))
 
 
 def count_parameters(model: nn.Module) -> int:
