@@ -92,27 +92,30 @@ class CalibrationConfig:
                 raise TrainingError(f"{name} must be a positive integer, got {v!r}")
 
 
-def held_out_outputs(model, dataset: LightDataset, flip: bool = True, batch_size: int = 64) -> dict:
+def held_out_outputs(model, dataset: LightDataset, flip: bool = True, batch_size: int = 64,
+                     progress: bool = False) -> dict:
     """The frozen network on every image of ``dataset`` (and its mirror image with
     ``flip``): ``{"embedding" (M, embed), "y_pred" (M, 7), "y_true" (M, 7),
     "camera_tilt_deg" (M,), "image" (M,) index of the source image}`` (torch, float32),
-    M = N or 2N. The model's train/eval mode is restored."""
+    M = N or 2N; ``progress`` shows a bar. The model's train/eval mode is restored."""
+    from tqdm import tqdm
     was_training = model.training
     model.eval()
     emb, ys = [], []
     targets = np.stack([dataset.target(i) for i in range(len(dataset))]) if len(dataset) else np.zeros((0, 7))
     cams = dataset.truth()["camera_tilt_deg"]
     views = [False, True] if flip else [False]
+    batches = [(m, start) for m in views for start in range(0, len(dataset), batch_size)]
     try:
         with torch.no_grad():
-            for mirrored in views:
-                for start in range(0, len(dataset), batch_size):
-                    idx = range(start, min(start + batch_size, len(dataset)))
-                    x = torch.stack([torch.from_numpy(dataset.image_srgb8(i).transpose(2, 0, 1)
-                                                      .astype(np.float32) / 255.0) for i in idx])
-                    e = model.encode(flip_image(x) if mirrored else x)
-                    emb.append(e)
-                    ys.append(model._light(e))
+            for mirrored, start in tqdm(batches, desc="held-out images", unit="batch", disable=not progress,
+                                        leave=False, dynamic_ncols=True):
+                idx = range(start, min(start + batch_size, len(dataset)))
+                x = torch.stack([torch.from_numpy(dataset.image_srgb8(i).transpose(2, 0, 1)
+                                                  .astype(np.float32) / 255.0) for i in idx])
+                e = model.encode(flip_image(x) if mirrored else x)
+                emb.append(e)
+                ys.append(model._light(e))
     finally:
         model.train(was_training)
     y_true = torch.from_numpy(np.concatenate([flip_y(targets) if m else targets for m in views])).float()
@@ -181,10 +184,7 @@ def calibrate_kappa(model, data_dir: str | os.PathLike, cfg: CalibrationConfig =
                            f"at least {MIN_IMAGES}")
     for p in model.parameters():
         p.requires_grad_(False)
-    out = held_out_outputs(model, dataset, cfg.flip, cfg.batch_size)
-    if progress:
-        print(f"calibration: {len(dataset)} images of split {cfg.split!r}"
-              f"{' and their mirror images' if cfg.flip else ''}")
+    out = held_out_outputs(model, dataset, cfg.flip, cfg.batch_size, progress=progress)
     g = torch.Generator().manual_seed(cfg.seed)
     order = torch.randperm(len(dataset), generator=g)
     n_check = max(1, min(len(dataset) - 1, round(cfg.check_fraction * len(dataset))))
@@ -205,6 +205,7 @@ def calibrate_kappa(model, data_dir: str | os.PathLike, cfg: CalibrationConfig =
         best_step, curve = fit_head(head, fit, check, cfg)
         for p in head.parameters():
             p.requires_grad_(False)
+
     def with_temperature():
         with torch.no_grad():
             raw = head_kappa(head, check["embedding"]).double().numpy()
