@@ -10,8 +10,9 @@ Every step resumes: re-running the same command reuses the finished rooms and ru
     .venv/bin/python benchmarks/bench_mid.py                       # the measured run (README)
     .venv/bin/python benchmarks/bench_mid.py --scenes 2 --epochs 1 --out /tmp/mid_quick   # smoke run
 
-The measured run: 30 rooms x 25 flash directions (seed 1, 96 px, 9 spp: ~30 minutes of
-rendering on the shared 2-core machine), scene splits (i % 5 == 4 test, i % 10 == 2 val),
+The measured run: 16 rooms x 25 flash directions + 16 reference images (seed 1, 96 px,
+64 light paths a pixel; the probes at 288 px equivalent, 16 spp: ~30 minutes of rendering on
+the shared 2-core machine), scene splits (i % 5 == 4 test, i % 10 == 2 val),
 fine-tuning for 10 epochs from relight/models/sid2_small.safetensors (Adam 2e-4, batch 16,
 flips, seed 0).
 """
@@ -36,7 +37,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", default=os.path.expanduser("~/relight-data/mid_bench"),
                     help="folder for the dataset (data/) and the two runs (default ~/relight-data/mid_bench)")
-    ap.add_argument("--scenes", type=int, default=30, help="rooms (25 images each; default 30)")
+    ap.add_argument("--scenes", type=int, default=16, help="rooms (25 images each; default 16)")
     ap.add_argument("--seed", type=int, default=1, help="dataset seed (default 1)")
     ap.add_argument("--epochs", type=int, default=10, help="fine-tuning epochs (default 10)")
     ap.add_argument("--lr", type=float, default=2e-4)

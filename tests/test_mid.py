@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-TINY = {"res": 32, "spp": 4, "cube_res": 8, "cube_spp": 4, "directions": [0, 4], "n_clutter": [1, 2]}
+TINY = {"res": 32, "spp": 4, "probe_spp": 4, "cube_res": 8, "cube_spp": 4, "directions": [0, 4],
+        "n_clutter": [1, 2]}
 
 
 def _relight(*argv, timeout=600):
@@ -78,7 +79,8 @@ def test_physical_truth_closed_forms(mi):
     spot straight above the flash (Lambertian ceiling, the spot's peak irradiance there)."""
     from relight.scene.mid import MidConfig, MidRenderer
     scene = _empty_room()
-    cfg = MidConfig(res=16, spp=1, cube_res=16, cube_spp=16, directions=(0,))
+    # the flash in a 0.12 m snoot (a ~40 deg beam): the lit spot is compact, its centre above the flash
+    cfg = MidConfig(res=16, spp=1, probe_spp=1, cube_res=16, cube_spp=16, directions=(0,), snoot_m=0.12)
     renderer = MidRenderer(scene, cfg)
     to_flash = scene.flash_position - scene.chrome_centre
     _, _, truth = renderer.render(-to_flash / np.linalg.norm(to_flash), 3)

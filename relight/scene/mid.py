@@ -15,12 +15,19 @@ reaching the scene has bounced. This module samples and renders such scenes:
 * **Probes**: a chrome and a gray (albedo :data:`GRAY_ALBEDO`) sphere resting on the
   floor at random places in view, of :data:`SPHERE_RADIUS_FRACTION` of the image width
   in radius, never hidden by clutter.
-* **Flash**: a disk emitter of radius :data:`FLASH_RADIUS_M` (Lambertian, one-sided) in a
-  black snoot (an open cylinder :data:`SNOOT_LENGTH_M` long: no direct light beyond
-  ~40 deg off its axis), :data:`FLASH_OFFSET_M` above the camera, turned to the 25
-  directions of :data:`FLASH_DIRECTIONS` relative to the camera (yaw to the camera's
-  right, elevation above the horizon), plus the *reference* pose (the flash along the
-  camera's optical axis, the paper's reference image).
+* **Flash**: a disk emitter of radius :data:`FLASH_RADIUS_M` (Lambertian, one-sided: no
+  light behind it), :data:`FLASH_OFFSET_M` above the camera, turned to the 25 directions of
+  :data:`FLASH_DIRECTIONS` relative to the camera (yaw to the camera's right, elevation
+  above the horizon), plus the *reference* pose (the flash along the camera's optical
+  axis, the paper's reference image). ``MidConfig.snoot_m`` > 0 puts it in a black tube
+  of that length (0.12 m: no direct light beyond ~40 deg off its axis); the default is
+  a bare flash.
+* **Rendering**: the image by light tracing (Mitsuba ``ptracer``, ``spp`` light paths a
+  pixel: a room lit by a flash bouncing off walls is what it does well, where a path
+  tracer stays noisy at hundreds of samples), except the chrome sphere, which light
+  tracing cannot see: its pixels are the path-traced probe photograph averaged down.
+  The probe photograph (what the sphere procedure measures) is rendered at
+  ``probe_zoom`` x the resolution, only around the two spheres.
 
 **Physical ground truth** (:func:`physical_truth`): the incident radiance ``L(w)`` at a
 sphere's centre in the scene *without the two spheres* is the flash seen directly
@@ -47,14 +54,14 @@ ROOM_HALF_M = (2.0, 3.5)           # half-widths of the room along x and y
 CEILING_M = (2.4, 3.2)
 CAMERA_HEIGHT_M = (1.2, 1.7)
 CAMERA_TILT_DEG = (12.0, 30.0)     # pitched down (the conventions' camera tilt)
-CAMERA_WALL_GAP_M = 0.3            # camera distance from the +X wall
+CAMERA_WALL_GAP_M = 0.6            # camera distance from the +X wall
 FOV_DEG = 55.0
 GRAY_ALBEDO = 0.5
 SPHERE_RADIUS_FRACTION = (0.07, 0.1)   # sphere outline radius / image width
 SPHERE_DISTANCE_M = (1.2, 3.2)
 FLASH_OFFSET_M = 0.12              # flash centre above the camera centre
 FLASH_RADIUS_M = 0.05              # a flash with a diffuser: visible as a glint in the chrome sphere
-SNOOT_LENGTH_M = 0.12               # no direct light beyond ~40 deg off the flash's axis
+SNOOT_LENGTH_M = 0.12               # MidConfig.snoot_m: 0.12 gives no direct light beyond ~40 deg
 SNOOT_RADIUS_M = 1.05 * FLASH_RADIUS_M
 FLASH_INTENSITY_W_SR = 20.0        # on-axis radiant intensity (radiance x disk area)
 CUBE_RES = 16
@@ -78,12 +85,14 @@ class MidConfig:
     ``i % 5 == 4``, ``val`` when ``i % 10 == 2``, else ``train``.
     """
     res: int = 96
-    spp: int = 9
+    spp: int = 64             # light paths per pixel of the image (Mitsuba ptracer)
     max_depth: int = 5
     fov_deg: float = FOV_DEG
     cube_res: int = CUBE_RES
     cube_spp: int = 8
     probe_zoom: int = 3
+    snoot_m: float = 0.0
+    probe_spp: int = 16
     probe_gray_spp: int = 4
     directions: tuple[int, ...] = tuple(range(len(FLASH_DIRECTIONS)))
     n_clutter: tuple[int, int] = (3, 6)
@@ -291,7 +300,7 @@ def _blocks(cam, sphere_c, sphere_r, p, scale) -> bool:
 
 
 # --------------------------------------------------------------------------- Mitsuba
-def _flash_transforms(scene: MidScene, axis: np.ndarray):
+def _flash_transforms(scene: MidScene, axis: np.ndarray, snoot_m: float = 0.0):
     """``(disk to_world, snoot to_world)`` 4x4 for a flash pointing along ``axis``."""
     z = axis / np.linalg.norm(axis)
     frame = frames.frame_z_to(z)          # 3x3, third column = z
@@ -300,7 +309,7 @@ def _flash_transforms(scene: MidScene, axis: np.ndarray):
     disk[:3, :3] = frame * FLASH_RADIUS_M
     disk[:3, 3] = pos
     snoot = np.eye(4)
-    snoot[:3, :3] = frame @ np.diag([SNOOT_RADIUS_M, SNOOT_RADIUS_M, SNOOT_LENGTH_M])
+    snoot[:3, :3] = frame @ np.diag([SNOOT_RADIUS_M, SNOOT_RADIUS_M, max(snoot_m, 1e-4)])
     snoot[:3, 3] = pos
     return disk, snoot
 
@@ -353,11 +362,14 @@ def _room(scene: MidScene, mi, with_spheres: bool, cfg: MidConfig) -> dict:
         "wall_ny": {"type": "rectangle", "to_world": t().translate([0, -hy, H / 2]) @ t().rotate([1, 0, 0], -90)
                     @ t().scale([hx, H / 2, 1.0]), "bsdf": diffuse(scene.wall_rgb[3])},
     }
-    disk, snoot = _flash_transforms(scene, reference_axis(scene.camera_tilt_deg))
+    disk, snoot = _flash_transforms(scene, reference_axis(scene.camera_tilt_deg), cfg.snoot_m)
     L = flash_radiance()
     d["flash"] = {"type": "disk", "to_world": mi.ScalarTransform4f(disk),
                   "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [L * c for c in scene.flash_rgb]}}}
-    d["snoot"] = {"type": "cylinder", "to_world": mi.ScalarTransform4f(snoot), "bsdf": diffuse([0.02] * 3)}
+    # black inside and out: lit at millimetres by the disk, any albedo would make it a tiny
+    # bright lamp (path-tracing fireflies)
+    if cfg.snoot_m > 0:
+        d["snoot"] = {"type": "cylinder", "to_world": mi.ScalarTransform4f(snoot), "bsdf": diffuse([0.0] * 3)}
     from relight.scene.shapes import make_mesh
     for i, (family, params, pos, scale, rot, rgb) in enumerate(scene.clutter):
         mesh = make_mesh(family, params, 24, 12)
@@ -435,18 +447,30 @@ class MidRenderer:
         # large; the network sees them reduced): one cropped sensor per sphere
         self.crops = []
         big = cfg.res * cfg.probe_zoom
-        from relight.probe.geometry import bounding_box
+        from relight.probe.geometry import bounding_box, outline_polygon
         from relight.probe.geometry import Camera
         camera = Camera.from_fov(big, big, cfg.fov_deg)
         for k, which in enumerate(("chrome", "gray")):
             x0, y0, x1, y1 = bounding_box(camera, probe_sphere(scene, which), margin=4 * cfg.probe_zoom)
-            x0, y0, x1, y1 = max(0, x0), max(0, y0), min(big, x1), min(big, y1)
+            z = cfg.probe_zoom      # whole image pixels, so the chrome crop can be pasted in
+            x0, y0 = max(0, x0 // z * z), max(0, y0 // z * z)
+            x1, y1 = min(big, -(-x1 // z) * z), min(big, -(-y1 // z) * z)
             s = render.sensor(big, cfg.fov_deg, "multijitter", mi.ScalarTransform4f(m))
             s["film"].update(crop_offset_x=int(x0), crop_offset_y=int(y0), crop_width=int(x1 - x0),
                              crop_height=int(y1 - y0))
             d[f"crop_{which}"] = s
             self.crops.append((x0, y0, x1, y1))
         self.view = mi.load_dict(d)
+        # light tracing: a room lit by a flash bouncing off a wall is what it does well;
+        # it cannot see the chrome sphere (a mirror), whose pixels come from the path-traced crop
+        self.ptracer = mi.load_dict({"type": "ptracer", "max_depth": cfg.max_depth})
+        import cv2
+        x0, y0, x1, y1 = self.crops[0]
+        inside = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        x, y = outline_polygon(camera, probe_sphere(scene, "chrome"), 256)
+        pts = np.round(np.stack([x - 0.5 - x0, y - 0.5 - y0], -1) * 16).astype(np.int32)
+        cv2.fillPoly(inside, [pts], 1, cv2.LINE_8, shift=4)
+        self.chrome_inside = inside.astype(np.float32)
         p = _room(scene, mi, False, cfg)
         p["integrator"] = {"type": "path", "max_depth": cfg.max_depth, "hide_emitters": True}
         p["sensor"] = _cube_sensor(mi, [scene.chrome_centre, scene.gray_centre], cfg.cube_res, cfg.cube_spp)
@@ -454,10 +478,11 @@ class MidRenderer:
         self.params = [mi.traverse(self.view), mi.traverse(self.probe)]
 
     def _point(self, axis):
-        disk, snoot = _flash_transforms(self.scene, axis)
+        disk, snoot = _flash_transforms(self.scene, axis, self.cfg.snoot_m)
         for p in self.params:
             p["flash.to_world"] = self.mi.ScalarTransform4f(disk)
-            p["snoot.to_world"] = self.mi.ScalarTransform4f(snoot)
+            if self.cfg.snoot_m > 0:
+                p["snoot.to_world"] = self.mi.ScalarTransform4f(snoot)
             p.update()
 
     def render(self, axis, seed: int) -> tuple[np.ndarray, np.ndarray, dict]:
@@ -466,24 +491,33 @@ class MidRenderer:
         physical truth."""
         from relight import render
         self._point(axis)
-        image = render.render_scene(self.view, self.cfg.spp, seed, "multijitter")[..., :3]
+        image = np.array(self.mi.render(self.view, integrator=self.ptracer, spp=self.cfg.spp, seed=seed),
+                         np.float32)[..., :3]
         big = self.cfg.res * self.cfg.probe_zoom
         probe = np.zeros((big, big, 3), np.float32)
         for k, (x0, y0, x1, y1) in enumerate(self.crops):
             from relight.scene import noise
-            spp = noise.exact_spp("multijitter", self.cfg.spp)
+            spp = noise.exact_spp("multijitter", self.cfg.probe_spp)
             if k == 1:   # the gray sphere's mean colour needs few samples
                 spp = noise.exact_spp("multijitter", self.cfg.probe_gray_spp)
             crop = np.array(self.mi.render(self.view, sensor=k + 1, spp=spp, seed=seed + 7 + k), np.float32)
             probe[y0:y1, x0:x1] = crop[..., :3]
+            if k == 0:    # the chrome sphere's pixels: its path-traced crop, averaged per image pixel
+                z = self.cfg.probe_zoom
+                h, w = (y1 - y0) // z, (x1 - x0) // z
+                inside = self.chrome_inside[..., None]
+                cover = self.chrome_inside.reshape(h, z, w, z).mean((1, 3))[..., None]
+                mirror = (crop[..., :3] * inside).reshape(h, z, w, z, 3).mean((1, 3))
+                win = image[y0 // z:y0 // z + h, x0 // z:x0 // z + w]
+                image[y0 // z:y0 // z + h, x0 // z:x0 // z + w] = win * (1 - cover) + mirror
         cube = render.render_scene(self.probe, self.cfg.cube_spp, seed + 1)[..., :3]
         n = self.cfg.cube_res
         faces = cube.reshape(n, 12, n, 3).transpose(1, 0, 2, 3)     # (12, n, n, 3)
-        truth = physical_truth(self.scene, axis, faces[:6], faces[6:], self.probe)
+        truth = physical_truth(self.scene, axis, faces[:6], faces[6:], self.probe, self.cfg.snoot_m)
         return image, probe, truth
 
 
-def _direct_flash(scene: MidScene, axis, point, mi_scene) -> tuple[np.ndarray, float]:
+def _direct_flash(scene: MidScene, axis, point, mi_scene, snoot_m: float = 0.0) -> tuple[np.ndarray, float]:
     """The flash seen from ``point``: (unit direction, radiance x projected solid angle per
     rgb unit) -- 0 when the point is behind the disk or the view is blocked."""
     to = scene.flash_position - point
@@ -495,14 +529,14 @@ def _direct_flash(scene: MidScene, axis, point, mi_scene) -> tuple[np.ndarray, f
     omega = math.pi * FLASH_RADIUS_M ** 2 * cos_emit / dist ** 2
     # the snoot's front opening (radius 1.05 r, SNOOT_LENGTH_M ahead) shifted by L tan(off-axis)
     # over the disk: the visible part is the two circles' overlap
-    shift = SNOOT_LENGTH_M * math.tan(math.acos(min(cos_emit, 1.0)))
+    shift = snoot_m * math.tan(math.acos(min(cos_emit, 1.0)))
     visible_fraction = circle_overlap(FLASH_RADIUS_M, SNOOT_RADIUS_M, shift) / (math.pi * FLASH_RADIUS_M ** 2)
     if visible_fraction > 0 and mi_scene is not None:
         mi = backend_mi()
         ray = mi.Ray3f(mi.Point3f(*point.tolist()), mi.Vector3f(*w.tolist()))
         si = mi_scene.ray_intersect(ray)
         hit_t = float(np.array(si.t)[0]) if bool(np.array(si.is_valid())[0]) else math.inf
-        if hit_t < dist - math.hypot(SNOOT_LENGTH_M, SNOOT_RADIUS_M) - 0.02:   # the snoot is in the closed form
+        if hit_t < dist - math.hypot(snoot_m, SNOOT_RADIUS_M) - 0.02:   # the snoot is in the closed form
             visible_fraction = 0.0
     return w, flash_radiance() * omega * visible_fraction
 
@@ -547,7 +581,7 @@ def dominant_direction(dirs: np.ndarray, weights_lum: np.ndarray, cap_deg: float
 
 
 def physical_truth(scene: MidScene, axis, chrome_faces: np.ndarray, gray_faces: np.ndarray,
-                   mi_scene=None) -> dict:
+                   mi_scene=None, snoot_m: float = 0.0) -> dict:
     """The physical ground truth (module docstring) from the cube maps ``(6, n, n, 3)``
     at the chrome and gray spheres' centres (emitters hidden) and the flash's closed form."""
     axis = np.asarray(axis, np.float64)
@@ -558,7 +592,7 @@ def physical_truth(scene: MidScene, axis, chrome_faces: np.ndarray, gray_faces: 
     for which, faces, centre in (("chrome", chrome_faces, scene.chrome_centre),
                                  ("gray", gray_faces, scene.gray_centre)):
         rad = faces.reshape(-1, 3).astype(np.float64)
-        w_flash, power = _direct_flash(scene, axis, centre, mi_scene)
+        w_flash, power = _direct_flash(scene, axis, centre, mi_scene, snoot_m)
         d_all = np.concatenate([dirs, w_flash[None]])
         rgb_all = np.concatenate([rad * omega[:, None], power * np.asarray(scene.flash_rgb)[None]])
         out[which] = (d_all, rgb_all, power)
