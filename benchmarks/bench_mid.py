@@ -41,6 +41,8 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=1, help="dataset seed (default 1)")
     ap.add_argument("--epochs", type=int, default=10, help="fine-tuning epochs (default 10)")
     ap.add_argument("--lr", type=float, default=2e-4)
+    ap.add_argument("--snoot", type=float, default=0.0,
+                    help="flash snoot length in metres (MidConfig.snoot_m; 0.12: a ~40 deg beam; default 0, bare)")
     ap.add_argument("--threads", type=int, default=2, help="render threads (default 2; torch uses 1, the "
                                                           "fastest on a busy 2-core machine)")
     args = ap.parse_args(argv)
@@ -52,7 +54,9 @@ def main(argv=None) -> int:
     data = os.path.join(args.out, "data")
     t0 = time.perf_counter()
     backend.init(threads=args.threads)
-    stats = mid.generate_mid(data, args.scenes, seed=args.seed, progress=True, threads=args.threads)
+    from relight.scene.mid import MidConfig
+    stats = mid.generate_mid(data, args.scenes, seed=args.seed, cfg=MidConfig(snoot_m=args.snoot), progress=True,
+                             threads=args.threads)
     t_gen = time.perf_counter() - t0
     print(f"dataset {data}: {args.scenes} rooms ({stats.scenes_written} rendered now in {t_gen:.0f} s, "
           f"{stats.failed_probe} images without a procedure ground truth)")
@@ -113,7 +117,7 @@ def main(argv=None) -> int:
         print(f"- {k}: {measured[k]:.2f} (target <= {target:.2f}) {'met' if measured[k] <= target else 'NOT met'}")
     print(f"\nprocedure vs physical, back light, median direction: {pvp['back']['median'][2]:.2f} "
           f"({pvp['n_back']} images)")
-    summary = {"scenes": args.scenes, "seed": args.seed, "epochs": args.epochs, "n_records": len(records),
+    summary = {"scenes": args.scenes, "seed": args.seed, "snoot_m": args.snoot, "epochs": args.epochs, "n_records": len(records),
                "n_test": len(test), "generate_s_this_run": t_gen, "train_s": timings,
                "results": {k: v for k, v in results.items()}, "procedure_vs_physical": pvp,
                "procedure_uncorrected_vs_physical": raw, "measured": measured}
