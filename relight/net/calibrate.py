@@ -72,7 +72,7 @@ class CalibrationConfig:
     mode: str = "head"
     check_fraction: float = 0.3
     flip: bool = True
-    lr: float = 1e-3
+    lr: float = 1e-4
     weight_decay: float = 1e-2
     max_steps: int = 3000
     patience: int = 200
