@@ -80,8 +80,12 @@ FLASH_DIRECTIONS: tuple[tuple[float, float], ...] = tuple(
 class MidConfig:
     """Settings of a MID-like dataset (written to its card).
 
-    ``directions``: indices into :data:`FLASH_DIRECTIONS` rendered per scene (all 25 by
-    default; tests use a few). Splits are per scene: scene ``i`` is ``test`` when
+    ``res`` image size (pixels), ``spp`` light paths a pixel of the image, ``max_depth``
+    path length, ``cube_res``/``cube_spp`` the physical truth's cube maps, ``probe_zoom``
+    the probe photograph's magnification with ``probe_spp`` (chrome) and ``probe_gray_spp``
+    samples a pixel, ``snoot_m`` the flash's snoot length (0: bare), ``n_clutter`` the
+    range of clutter objects. ``directions``: indices into :data:`FLASH_DIRECTIONS`
+    rendered per scene (all 25 by default; tests use a few). Splits are per scene: scene ``i`` is ``test`` when
     ``i % 5 == 4``, ``val`` when ``i % 10 == 2``, else ``train``.
     """
     res: int = 96
