@@ -333,18 +333,9 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
         from relight.engine import parse_scheduler
         scheduler = parse_scheduler(scheduler)
     out = os.fspath(out_dir)
-    if os.path.lexists(out) and not os.path.isdir(out):
-        raise DatasetError(f"{out} exists and is not a folder")
-    existed = os.path.isdir(out)
-    before = set(os.listdir(out)) if existed else set()
-    os.makedirs(out, exist_ok=True)
+    before = set(os.listdir(out)) if os.path.isdir(out) else set()
     card_path = os.path.join(out, CARD)
-    try:
-        lock = FolderLock(out, "dataset").acquire()
-    except BaseException:
-        if not existed:
-            shutil.rmtree(out, ignore_errors=True)
-        raise
+    lock, existed = FolderLock.take(out, "dataset")
     old_card = open(card_path, "rb").read() if os.path.isfile(card_path) else None
     stats = GenerateStats()
     try:

@@ -373,3 +373,24 @@ def announce(c, local: bool = False) -> None:
     """Print :func:`describe` on stderr above a progress bar."""
     from tqdm import tqdm
     tqdm.write(describe(c, local), file=sys.stderr)
+
+
+def map_ordered(scheduler, fn: Callable, context, n: int, desc: str, progress: bool = True,
+                bar: bool = True, **kw) -> list:
+    """The per-item values of ``fn(context, shard)`` (a list per shard) for items
+    ``0..n-1``, gathered here in item order under one progress bar (``desc``, items/s);
+    ``bar``: show the bar (with ``progress``); ``kw`` as for :func:`map_shards`. The gathering verbs (compare, invert, baseline)
+    use it, so their outputs are written by the client exactly as on one process."""
+    from tqdm import tqdm
+    values = [None] * n
+    pbar = tqdm(total=n, desc=desc, unit="img", disable=None if progress and bar else True)
+
+    def on_result(shard, shard_values):
+        for k, value in zip(shard, shard_values):
+            values[k] = value
+        pbar.update(len(shard))
+    try:
+        map_shards(scheduler, fn, context, list(range(n)), on_result, progress=progress, **kw)
+    finally:
+        pbar.close()
+    return values

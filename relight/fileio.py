@@ -343,6 +343,23 @@ class FolderLock:
 
     Raises :class:`OutputError` when another process holds it."""
 
+    @classmethod
+    def take(cls, folder: str | os.PathLike, what: str = "folder") -> tuple["FolderLock", bool]:
+        """Make ``folder`` if needed and lock it; returns ``(lock, existed)``. Refuses
+        (:class:`OutputError`) a path that is not a folder; a folder made here is removed
+        again when the lock cannot be taken."""
+        folder = os.fspath(folder)
+        if os.path.lexists(folder) and not os.path.isdir(folder):
+            raise OutputError(f"{folder} exists and is not a folder")
+        existed = os.path.isdir(folder)
+        os.makedirs(folder, exist_ok=True)
+        try:
+            return cls(folder, what).acquire(), existed
+        except BaseException:
+            if not existed:
+                shutil.rmtree(folder, ignore_errors=True)
+            raise
+
     def __init__(self, folder: str | os.PathLike, what: str = "folder"):
         self.folder = os.fspath(folder)
         self.what = what

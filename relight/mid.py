@@ -37,6 +37,7 @@ from relight import frames
 from relight.errors import ConfigError, DatasetError, ProbeError
 from relight.scene import mid as scene_mid
 from relight.scene.mid import MidConfig
+from relight.scene.sampling import read_config_file
 
 MID_FORMAT = "relight.dataset.mid/v1"
 REF_ELEVATION_DEG = math.degrees(math.atan(scene_mid.FLASH_OFFSET_M / 2.2))
@@ -239,15 +240,7 @@ def mid_config(path: str | None = None, refused: dict | None = None, **overrides
     for name, given in (refused or {}).items():
         if given:
             raise ConfigError(f"{name} does not apply to --preset mid")
-    d = {}
-    if path is not None:
-        try:
-            with open(path) as f:
-                d = json.load(f)
-        except (OSError, json.JSONDecodeError) as exc:
-            raise ConfigError(f"cannot read config {path}: {str(exc).splitlines()[0]}") from None
-        if not isinstance(d, dict):
-            raise ConfigError(f"{path}: expected a JSON object of settings")
+    d = read_config_file(path) if path is not None else {}
     d.update({k: v for k, v in overrides.items() if v is not None})
     try:
         return MidConfig.from_dict(d)
@@ -276,16 +269,7 @@ def generate_mid(out_dir: str | os.PathLike, scenes: int, seed: int = 0, cfg: Mi
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < SEED_LIMIT:
         raise DatasetError(f"seed must be an integer in [0, 2**32), got {seed!r}")
     out = os.fspath(out_dir)
-    if os.path.lexists(out) and not os.path.isdir(out):
-        raise DatasetError(f"{out} exists and is not a folder")
-    existed = os.path.isdir(out)
-    os.makedirs(out, exist_ok=True)
-    try:
-        lock = FolderLock(out, "dataset").acquire()
-    except BaseException:
-        if not existed:
-            os.rmdir(out)
-        raise
+    lock = FolderLock.take(out, "dataset")[0]
     stats = MidStats()
     t0 = time.perf_counter()
     try:

@@ -37,3 +37,22 @@ def sphere_scene(pan_rel_deg=90.0, tilt_deg=30.0, camera_tilt_deg=30.0, res=48, 
     return SceneSpec(id="sphere", camera=CameraSpec(tilt_deg=camera_tilt_deg, fov_deg=30.0),
                      light=LightSpec(r_m=r_m, pan_deg=pan_rel_deg, tilt_deg=tilt_deg, rgb=rgb),
                      room=room, objects=(sphere,), render=RenderSpec(res=res, spp=spp, max_depth=3, seed=seed))
+
+
+def tiny_dataset(root, count: int, seed: int, res: int = 32) -> str:
+    """A small generated dataset (4 spp) in ``root``; returns its path."""
+    from relight.dataset import generate
+    from relight.scene.sampling import GeneratorConfig
+    generate(root, count=count, seed=seed, cfg=GeneratorConfig(res=res, spp=4), progress=False)
+    return str(root)
+
+
+def untrained_model(path, res: int = 32) -> str:
+    """An untrained narrow network (width 8, torch seed 0) saved at ``path``."""
+    import torch
+
+    from relight.net.io import save_model
+    from relight.net.model import LightNet, NetConfig
+    torch.manual_seed(0)
+    save_model(str(path), LightNet(NetConfig(res=res, width=8)), {"note": "untrained"})
+    return str(path)

@@ -14,6 +14,7 @@ from relight.net.calibrate import CalibrationConfig, fit_head
 from relight.net.io import load_model_file, read_model_file, save_model
 from relight.net.model import LightNet, NetConfig, _head, head_kappa
 from relight.net.uncertainty import spearman
+from conftest import tiny_dataset, untrained_model
 
 RES = 32
 CAMERA_TILT_DEG = 30.0
@@ -87,19 +88,12 @@ def test_fit_head_recovers_known_concentration():
 
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory):
-    from relight.dataset import generate
-    from relight.scene.sampling import GeneratorConfig
-    root = tmp_path_factory.mktemp("tiny")
-    generate(root, count=12, seed=17, cfg=GeneratorConfig(res=RES, spp=4), progress=False)
-    return str(root)
+    return tiny_dataset(tmp_path_factory.mktemp("tiny"), count=12, seed=17, res=RES)
 
 
 @pytest.fixture(scope="module")
 def model_file(tmp_path_factory):
-    torch.manual_seed(0)
-    path = str(tmp_path_factory.mktemp("m") / "net.safetensors")
-    save_model(path, LightNet(NetConfig(res=RES, width=8)), {"note": "untrained"})
-    return path
+    return untrained_model(tmp_path_factory.mktemp("m") / "net.safetensors", res=RES)
 
 
 @pytest.mark.parametrize("mode", ["head", "last", "temperature"])

@@ -14,16 +14,14 @@ from relight.net.io import save_model
 from relight.net.model import LightNet, NetConfig
 from relight.net.predict import ACHROMATIC_TOLERANCE, is_achromatic, load_model, predict_arrays
 from relight.predictions import read_predictions
+from conftest import tiny_dataset, untrained_model
 
 RES = 32
 
 
 @pytest.fixture(scope="module")
 def model_file(tmp_path_factory):
-    torch.manual_seed(0)
-    path = str(tmp_path_factory.mktemp("m") / "net.safetensors")
-    save_model(path, LightNet(NetConfig(res=RES, width=8)), {"note": "untrained"})
-    return path
+    return untrained_model(tmp_path_factory.mktemp("m") / "net.safetensors", res=RES)
 
 
 def _colour_image(seed=0, size=40):
@@ -90,11 +88,7 @@ def test_colour_reliable_must_be_boolean(tmp_path):
 
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory):
-    from relight.dataset import generate
-    from relight.scene.sampling import GeneratorConfig
-    root = tmp_path_factory.mktemp("tiny")
-    generate(root, count=6, seed=13, cfg=GeneratorConfig(res=RES, spp=4), progress=False)
-    return str(root)
+    return tiny_dataset(tmp_path_factory.mktemp("tiny"), count=6, seed=13, res=RES)
 
 
 def test_per_image_csv_has_kappa_and_cone(tiny, model_file, tmp_path):

@@ -10,14 +10,14 @@ import pytest
 import torch
 
 from relight.cli import main
-from relight.dataset import DatasetError
 from relight.errors import TrainingError
-from relight.net.io import ModelFileError, load_model_file, save_model
+from relight.net.io import ModelFileError, load_model_file
 from relight.net.loss import light_loss
 from relight.net.model import LightNet, NetConfig
 from relight.net.predict import load_model, predict_arrays, predict_files
 from relight.net.train import TrainConfig, train
 from relight.predictions import read_predictions
+from conftest import tiny_dataset, untrained_model
 
 RES = 32
 OVERFIT_LOSS = 0.02          # a few images, many steps: the loss (~1 at start) gets near zero
@@ -27,19 +27,12 @@ SAME_INPUT_ATOL = 1e-6       # same pixels through two paths give the same outpu
 
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory):
-    from relight.dataset import generate
-    from relight.scene.sampling import GeneratorConfig
-    root = tmp_path_factory.mktemp("tiny")
-    generate(root, count=8, seed=11, cfg=GeneratorConfig(res=RES, spp=4), progress=False)
-    return str(root)
+    return tiny_dataset(tmp_path_factory.mktemp("tiny"), count=8, seed=11, res=RES)
 
 
 @pytest.fixture(scope="module")
 def model_file(tmp_path_factory):
-    torch.manual_seed(0)
-    path = str(tmp_path_factory.mktemp("m") / "net.safetensors")
-    save_model(path, LightNet(NetConfig(res=RES, width=8)), {"note": "untrained"})
-    return path
+    return untrained_model(tmp_path_factory.mktemp("m") / "net.safetensors", res=RES)
 
 
 def test_tiny_overfit(tiny):

@@ -136,19 +136,8 @@ def estimate_jobs(name: str, jobs: list, progress: bool = True, scheduler=None) 
         return [_entry(name, *p) for p in tqdm(paths, desc=name, unit="img",
                                                disable=not progress or len(paths) < 50)]
     from relight import engine
-    entries = [None] * len(paths)
-    bar = tqdm(total=len(paths), desc=name, unit="img", disable=not progress or len(paths) < 50)
-
-    def on_result(shard, values):
-        for k, entry in zip(shard, values):
-            entries[k] = entry
-        bar.update(len(shard))
-    try:
-        engine.map_shards(scheduler, _estimate_shard, (name, paths), list(range(len(paths))), on_result,
-                          mitsuba=False, progress=progress)
-    finally:
-        bar.close()
-    return entries
+    return engine.map_ordered(scheduler, _estimate_shard, (name, paths), len(paths), name, progress,
+                              bar=len(paths) >= 50, mitsuba=False)
 
 
 def _entry(name: str, image_id: str, image_path: str) -> dict:

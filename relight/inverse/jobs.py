@@ -87,18 +87,8 @@ def invert_jobs(jobs: list[Job], init: str, cfg, progress: bool = True,
         return [(job, _invert_one(job, start, cfg))
                 for job, start in tqdm(work, desc="invert", unit="img", disable=not progress)]
     from relight import engine
-    results = [None] * len(work)
-    bar = tqdm(total=len(work), desc="invert", unit="img", disable=not progress)
-
-    def on_result(shard, values):
-        for k, res in zip(shard, values):
-            results[k] = res
-        bar.update(len(shard))
-    try:
-        engine.map_shards(scheduler, _invert_shard, (work, cfg), list(range(len(work))), on_result,
-                          shard_size=1, progress=progress)   # seconds an image: one a task balances best
-    finally:
-        bar.close()
+    results = engine.map_ordered(scheduler, _invert_shard, (work, cfg), len(work), "invert", progress,
+                                 shard_size=1)   # seconds an image: one a task balances best
     return [(job, res) for (job, _), res in zip(work, results)]
 
 

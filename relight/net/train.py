@@ -263,16 +263,7 @@ def train(cfg: TrainConfig, out_dir: str | os.PathLike, resume: bool = False, pr
 
 
 def _train_rank0(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, ddp) -> dict:
-    if os.path.lexists(out_dir) and not os.path.isdir(out_dir):
-        raise DatasetError(f"{out_dir} exists and is not a folder")
-    existed = os.path.isdir(out_dir)
-    os.makedirs(out_dir, exist_ok=True)
-    try:
-        lock = FolderLock(out_dir, "training run").acquire()
-    except BaseException:
-        if not existed:
-            os.rmdir(out_dir)
-        raise
+    lock, existed = FolderLock.take(out_dir, "training run")
     try:
         return _train_locked(cfg, out_dir, resume, progress, ddp=ddp)
     except BaseException:

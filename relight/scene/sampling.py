@@ -27,6 +27,19 @@ from relight.scene.spec import (SAMPLERS, CameraSpec, LightSpec, ObjectSpec, Ren
 from relight.errors import ConfigError
 
 
+def read_config_file(path: str) -> dict:
+    """The JSON object of a generator config file; :class:`ConfigError` (one line) if the
+    file cannot be read or holds something else."""
+    try:
+        with open(path) as f:
+            data = json.load(f)
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ConfigError(f"cannot read config {path}: {str(exc).splitlines()[0]}") from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"config {path}: expected a JSON object")
+    return data
+
+
 @dataclass(frozen=True)
 class GeneratorConfig:
     """Settings of the SID2-style generator (units in the names; ranges inclusive)."""
@@ -99,13 +112,7 @@ class GeneratorConfig:
     @classmethod
     def from_file(cls, path: str, **overrides) -> "GeneratorConfig":
         """Load a JSON config (keys as the fields); ``overrides`` win over the file."""
-        try:
-            with open(path) as f:
-                data = json.load(f)
-        except (OSError, json.JSONDecodeError) as exc:
-            raise ConfigError(f"cannot read config {path}: {exc}") from None
-        if not isinstance(data, dict):
-            raise ConfigError(f"config {path}: expected a JSON object")
+        data = read_config_file(path)
         names = {f.name for f in dataclasses.fields(cls)}
         unknown = set(data) - names
         if unknown:

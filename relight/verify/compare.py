@@ -280,22 +280,9 @@ def _compare_shard(context, shard: list[int]) -> list:
 
 def _compare_on_engine(scheduler, tasks: list[Task], noise_seed_offset: int, progress: bool) -> list:
     """The outcomes of ``tasks`` rendered on Dask, gathered here in task order."""
-    from tqdm import tqdm
-
     from relight import engine
-    outcomes = [None] * len(tasks)
-    bar = tqdm(total=len(tasks), desc="compare", unit="img", disable=None if progress else True)
-
-    def on_result(shard, values):
-        for k, value in zip(shard, values):
-            outcomes[k] = value
-        bar.update(len(shard))
-    try:
-        engine.map_shards(scheduler, _compare_shard, (tasks, noise_seed_offset), list(range(len(tasks))),
-                          on_result, progress=progress)
-    finally:
-        bar.close()
-    return outcomes
+    return engine.map_ordered(scheduler, _compare_shard, (tasks, noise_seed_offset), len(tasks),
+                              "compare", progress)
 
 
 def moved_light_predictions(dataset_dir: str | os.PathLike, spread_deg: float = 30.0,
