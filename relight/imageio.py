@@ -76,8 +76,13 @@ def to_srgb8(linear: np.ndarray, exposure: float = 1.0) -> np.ndarray:
 def write_png(path: str | os.PathLike, linear: np.ndarray, exposure: float = 1.0, inputs=()) -> None:
     """Write a linear image as an 8-bit sRGB PNG, atomically (refusing to replace one of
     ``inputs``)."""
+    write_srgb8(path, to_srgb8(linear, exposure), inputs)
+
+
+def write_srgb8(path: str | os.PathLike, srgb8: np.ndarray, inputs=()) -> None:
+    """Write 8-bit sRGB pixels ``(H, W, 3)`` uint8 as a PNG, atomically."""
     from PIL import Image
-    pixels = Image.fromarray(to_srgb8(linear, exposure))
+    pixels = Image.fromarray(np.ascontiguousarray(srgb8, dtype=np.uint8))
     atomic_write(path, lambda tmp: pixels.save(tmp, format="PNG", compress_level=1), inputs)
 
 

@@ -160,18 +160,12 @@ def _write_card(out: str, seed: int, cfg: MidConfig, scenes: int, n_records: int
 def _render_scene(out: str, cfg: MidConfig, seed: int, index: int, stats: MidStats) -> tuple[list[dict], dict]:
     """Render, measure and write one scene's image files; returns its records and the
     scene file's content (written by the caller once the records are in)."""
-    from relight.fileio import write_bytes
-    from relight.imageio import to_srgb8, write_exr
-    import cv2
+    from relight.imageio import to_srgb8, write_exr, write_srgb8
     scene = scene_mid.sample_scene(cfg, seed, index)
     renderer = scene_mid.MidRenderer(scene, cfg)
     mask = sphere_mask(cfg, scene)
     split = scene_mid.split_of_scene(index)
     tilt = scene.camera_tilt_deg
-
-    def png(path, srgb8):
-        ok, buf = cv2.imencode(".png", np.ascontiguousarray(srgb8[..., ::-1]))
-        write_bytes(path, buf.tobytes())
 
     def shoot(k, axis, render_seed):
         image, probe, truth = renderer.render(axis, render_seed)
@@ -181,8 +175,8 @@ def _render_scene(out: str, cfg: MidConfig, seed: int, index: int, stats: MidSta
         write_exr(exr, probe)
         expo = exposure_of(image)
         srgb = to_srgb8(image, expo)
-        png(os.path.join(out, "images", f"{iid}.png"), srgb)
-        png(os.path.join(out, "masked", f"{iid}.png"), masked_srgb8(srgb, mask))
+        write_srgb8(os.path.join(out, "images", f"{iid}.png"), srgb)
+        write_srgb8(os.path.join(out, "masked", f"{iid}.png"), masked_srgb8(srgb, mask))
         try:
             entry = run_procedure(exr, cfg, scene)
         except ProbeError as exc:

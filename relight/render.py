@@ -34,10 +34,13 @@ def sensor(res: int, fov_deg: float, sampler: str = "independent", to_world=None
     return d
 
 
-def render_scene(scene, spp: int, seed: int, sampler: str = "independent") -> np.ndarray:
+def render_scene(scene, spp: int, seed: int, sampler: str = "independent", integrator=None,
+                 sensor: int = 0) -> np.ndarray:
     """Render a loaded Mitsuba scene: ``(H, W, C)`` float32, linear. ``spp`` is rounded as
-    ``sampler`` needs (:func:`relight.scene.noise.exact_spp`: a square for multijitter)."""
+    ``sampler`` needs (:func:`relight.scene.noise.exact_spp`: a square for multijitter);
+    ``integrator`` (a loaded one) replaces the scene's, ``sensor`` picks one of its sensors."""
     from relight.scene import noise
     mi = backend.mitsuba()
     spp = noise.exact_spp(sampler, int(spp))
-    return np.array(mi.render(scene, spp=spp, seed=int(seed)), dtype=np.float32)
+    return np.array(mi.render(scene, integrator=integrator, sensor=int(sensor), spp=spp, seed=int(seed)),
+                    dtype=np.float32)

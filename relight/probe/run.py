@@ -245,12 +245,5 @@ def write_qa(path: str, result: ProbeResult, title: str = "") -> None:
     for i, text in enumerate(t for t in lines if t):
         cv2.putText(panel, text, (6, height + 18 + 20 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1,
                     cv2.LINE_AA)
-    ok, buf = cv2.imencode(".png", panel)
-    if not ok:
-        raise ProbeError(f"cannot encode the QA overlay for {path}")
-    from relight.fileio import atomic_write
-
-    def writer(tmp):
-        with open(tmp, "wb") as f:
-            f.write(buf.tobytes())
-    atomic_write(path, writer)
+    from relight.imageio import write_srgb8
+    write_srgb8(path, panel[..., ::-1])   # OpenCV draws BGR

@@ -495,16 +495,12 @@ class MidRenderer:
         physical truth."""
         from relight import render
         self._point(axis)
-        image = np.array(self.mi.render(self.view, integrator=self.ptracer, spp=self.cfg.spp, seed=seed),
-                         np.float32)[..., :3]
+        image = render.render_scene(self.view, self.cfg.spp, seed, "multijitter", integrator=self.ptracer)[..., :3]
         big = self.cfg.res * self.cfg.probe_zoom
         probe = np.zeros((big, big, 3), np.float32)
         for k, (x0, y0, x1, y1) in enumerate(self.crops):
-            from relight.scene import noise
-            spp = noise.exact_spp("multijitter", self.cfg.probe_spp)
-            if k == 1:   # the gray sphere's mean colour needs few samples
-                spp = noise.exact_spp("multijitter", self.cfg.probe_gray_spp)
-            crop = np.array(self.mi.render(self.view, sensor=k + 1, spp=spp, seed=seed + 7 + k), np.float32)
+            spp = self.cfg.probe_gray_spp if k == 1 else self.cfg.probe_spp   # the gray mean needs few
+            crop = render.render_scene(self.view, spp, seed + 7 + k, "multijitter", sensor=k + 1)
             probe[y0:y1, x0:x1] = crop[..., :3]
             if k == 0:    # the chrome sphere's pixels: its path-traced crop, averaged per image pixel
                 z = self.cfg.probe_zoom
