@@ -111,8 +111,7 @@ def held_out_outputs(model, dataset: LightDataset, flip: bool = True, batch_size
             for mirrored, start in tqdm(batches, desc="held-out images", unit="batch", disable=not progress,
                                         leave=False, dynamic_ncols=True):
                 idx = range(start, min(start + batch_size, len(dataset)))
-                x = torch.stack([torch.from_numpy(dataset.image_srgb8(i).transpose(2, 0, 1)
-                                                  .astype(np.float32) / 255.0) for i in idx])
+                x = dataset.batch(idx)
                 e = model.encode(flip_image(x) if mirrored else x)
                 emb.append(e)
                 ys.append(model._light(e))

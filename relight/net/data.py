@@ -123,8 +123,16 @@ class LightDataset(Dataset):
             return False
         return bool(np.random.default_rng([self.seed, self.epoch, i]).random() < 0.5)
 
+    def image_tensor(self, i: int) -> torch.Tensor:
+        """The network input of item ``i``: ``(3, res, res)`` float32 in [0, 1], not mirrored."""
+        return torch.from_numpy(self.image_srgb8(i).transpose(2, 0, 1).astype(np.float32) / 255.0)
+
+    def batch(self, items) -> torch.Tensor:
+        """:meth:`image_tensor` of ``items``, stacked ``(B, 3, res, res)``."""
+        return torch.stack([self.image_tensor(i) for i in items])
+
     def __getitem__(self, i: int):
-        x = torch.from_numpy(self.image_srgb8(i).transpose(2, 0, 1).astype(np.float32) / 255.0)
+        x = self.image_tensor(i)
         y = self.target(i)
         if self.flipped(i):
             x, y = flip_image(x), flip_y(y)

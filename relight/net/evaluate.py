@@ -41,8 +41,7 @@ def run_model(model, dataset: LightDataset, batch_size: int = 64, with_kappa: bo
         with torch.no_grad():
             for start in range(0, len(dataset), batch_size):
                 idx = range(start, min(start + batch_size, len(dataset)))
-                x = torch.stack([torch.from_numpy(dataset.image_srgb8(i).transpose(2, 0, 1).astype(np.float32)
-                                                  / 255.0) for i in idx])
+                x = dataset.batch(idx)
                 y, kappa = model.forward_with_kappa(x) if with_kappa else (model(x), None)
                 out.append(y.double().numpy())
                 if kappa is not None:
@@ -130,8 +129,8 @@ class _Rows:
     def __len__(self) -> int:
         return len(self.indices)
 
-    def image_srgb8(self, i: int) -> np.ndarray:
-        return self.dataset.image_srgb8(self.indices[i])
+    def batch(self, items):
+        return self.dataset.batch([self.indices[i] for i in items])
 
 
 def _model_shard(context, shard: list[int]):
