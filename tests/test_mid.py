@@ -175,3 +175,25 @@ def test_tables_on_known_inputs():
     text = mid.format_table4({("unmasked", "procedure"): rows})
     assert "10.83" in text and "12.50" in text
     assert "31.23" in mid.format_table5({"procedure": t5})
+
+
+def test_one_flash_colour_for_every_room_unless_asked():
+    """MID's photographs come from one flash: by default every room's flash has the
+    colour of FLASH_CCT_K on the Planckian locus; flash_cct_k=None draws one per room.
+    The rooms themselves do not depend on the choice."""
+    from relight.colour import cct_duv_to_rgb
+    from relight.errors import ConfigError
+    from relight.mid import mid_config
+    from relight.scene import mid as sm
+    fixed = [sm.sample_scene(sm.MidConfig(), 3, i) for i in range(4)]
+    free = [sm.sample_scene(sm.MidConfig(flash_cct_k=None), 3, i) for i in range(4)]
+    want = np.asarray(cct_duv_to_rgb(sm.FLASH_CCT_K, 0.0))
+    for a, b in zip(fixed, free):
+        assert a.flash_cct_k == sm.FLASH_CCT_K
+        assert np.allclose(a.flash_rgb, want)
+        assert 5000.0 <= b.flash_cct_k <= 6500.0
+        assert np.array_equal(a.chrome_centre, b.chrome_centre) and a.wall_rgb == b.wall_rgb
+    assert len({round(b.flash_cct_k, 3) for b in free}) == 4
+    for bad in (100.0, float("nan"), "warm"):
+        with pytest.raises(ConfigError):
+            mid_config(flash_cct_k=bad)

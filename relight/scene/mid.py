@@ -16,7 +16,8 @@ reaching the scene has bounced. This module samples and renders such scenes:
   floor at random places in view, of :data:`SPHERE_RADIUS_FRACTION` of the image width
   in radius, never hidden by clutter.
 * **Flash**: a disk emitter of radius :data:`FLASH_RADIUS_M` (Lambertian, one-sided: no
-  light behind it), :data:`FLASH_OFFSET_M` above the camera, turned to the 25 directions of
+  light behind it) of one colour in every room (:data:`FLASH_CCT_K`, on the Planckian
+  locus), :data:`FLASH_OFFSET_M` above the camera, turned to the 25 directions of
   :data:`FLASH_DIRECTIONS` relative to the camera (yaw to the camera's right, elevation
   above the horizon), plus the *reference* pose (the flash along the camera's optical
   axis, the paper's reference image). ``MidConfig.snoot_m`` > 0 puts it in a black tube
@@ -63,6 +64,7 @@ FLASH_OFFSET_M = 0.12              # flash centre above the camera centre
 FLASH_RADIUS_M = 0.05              # a flash with a diffuser: visible as a glint in the chrome sphere
 SNOOT_LENGTH_M = 0.12               # MidConfig.snoot_m: 0.12 gives no direct light beyond ~40 deg
 SNOOT_RADIUS_M = 1.05 * FLASH_RADIUS_M
+FLASH_CCT_K = 5500.0               # MidConfig.flash_cct_k: one white flash for every room
 FLASH_INTENSITY_W_SR = 20.0        # on-axis radiant intensity (radiance x disk area)
 CUBE_RES = 16
 CAP_DEG = 10.0
@@ -84,7 +86,9 @@ class MidConfig:
     path length, ``cube_res``/``cube_spp`` the physical truth's cube maps, ``probe_zoom``
     the probe photograph's magnification with ``probe_spp`` (chrome) and ``probe_gray_spp``
     samples a pixel, ``snoot_m`` the flash's snoot length (0: bare), ``n_clutter`` the
-    range of clutter objects. ``directions``: indices into :data:`FLASH_DIRECTIONS`
+    range of clutter objects. ``flash_cct_k``: the flash's colour temperature, the same
+    in every room, as MID's photographs all come from one flash (``None``: each room
+    draws 5000-6500 K, the first sets' setting). ``directions``: indices into :data:`FLASH_DIRECTIONS`
     rendered per scene (all 25 by default; tests use a few). Splits are per scene: scene ``i`` is ``test`` when
     ``i % 5 == 4``, ``val`` when ``i % 10 == 2``, else ``train``.
     """
@@ -100,6 +104,7 @@ class MidConfig:
     probe_gray_spp: int = 4
     directions: tuple[int, ...] = tuple(range(len(FLASH_DIRECTIONS)))
     n_clutter: tuple[int, int] = (3, 6)
+    flash_cct_k: float | None = FLASH_CCT_K
 
     def __post_init__(self):
         object.__setattr__(self, "directions", tuple(int(i) for i in self.directions))
@@ -112,6 +117,8 @@ class MidConfig:
             raise ConfigError(f"mid preset: directions must be distinct indices in [0, {len(FLASH_DIRECTIONS)})")
         if not 20.0 <= float(self.fov_deg) <= 90.0 or int(self.cube_res) < 4 or int(self.cube_spp) < 1:
             raise ConfigError("mid preset: fov_deg in [20, 90], cube_res >= 4, cube_spp >= 1")
+        if self.flash_cct_k is not None and not 2000.0 <= float(self.flash_cct_k) <= 20000.0:
+            raise ConfigError(f"mid preset: flash_cct_k must be in [2000, 20000] K or null, got {self.flash_cct_k!r}")
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -219,7 +226,9 @@ def sample_scene(cfg: MidConfig, seed: int, index: int) -> MidScene:
         return np.clip(base * (1 + rng.uniform(-0.15, 0.15, 3)), 0.05, 0.9).tolist()
     walls = [pale() for _ in range(5)]
     floor = np.clip(rng.uniform(0.15, 0.45) * (1 + rng.uniform(-0.2, 0.2, 3)), 0.05, 0.9).tolist()
-    cct = float(rng.uniform(5000.0, 6500.0))
+    cct = float(rng.uniform(5000.0, 6500.0))     # drawn in any case: the rooms stay the same
+    if cfg.flash_cct_k is not None:
+        cct = float(cfg.flash_cct_k)
     flash_rgb = tuple(float(v) for v in cct_duv_to_rgb(cct, 0.0))
     camera = probe_camera(cfg)
     f = camera.focal_px
