@@ -197,3 +197,24 @@ def test_one_flash_colour_for_every_room_unless_asked():
     for bad in (100.0, float("nan"), "warm"):
         with pytest.raises(ConfigError):
             mid_config(flash_cct_k=bad)
+
+
+def test_dominant_direction_equals_the_exhaustive_cap_search():
+    """The neighbour-tree cap search gives the exhaustive N x N search's answer (which
+    needs N^2 memory: 5 GB at 64 px a face), and finds a lone bright cap's centre."""
+    from relight.scene.mid import cube_directions, dominant_direction
+    rng = np.random.default_rng(4)
+    dirs, omega = cube_directions(12)
+    dirs, omega = dirs.reshape(-1, 3), omega.ravel()
+    cos_cap = math.cos(math.radians(10.0))
+    for _ in range(4):
+        w = rng.random(len(dirs)) ** 8 * omega
+        inside = (dirs @ dirs.T) >= cos_cap
+        sel = inside[int(np.argmax(inside @ w))]
+        want = (dirs[sel] * w[sel, None]).sum(0)
+        assert np.allclose(dominant_direction(dirs, w), want / np.linalg.norm(want), atol=1e-12)
+    target = np.array([0.3, 0.5, -0.8]) / np.linalg.norm([0.3, 0.5, -0.8])
+    dirs, omega = cube_directions(48)
+    dirs, omega = dirs.reshape(-1, 3), omega.ravel()
+    w = omega * np.exp(-((1 - dirs @ target) / 0.002))      # a ~3.6 deg wide lobe
+    assert _angle_deg(dominant_direction(dirs, w), target) < 0.3

@@ -581,10 +581,15 @@ def dominant_direction(dirs: np.ndarray, weights_lum: np.ndarray, cap_deg: float
     >>> np.round(dominant_direction(d, np.array([1.0, 1.0, 1.5])), 3).tolist()
     [0.0, 0.025, 1.0]
     """
-    cos_cap = math.cos(math.radians(cap_deg))
-    inside = (dirs @ dirs.T) >= cos_cap
-    best = int(np.argmax(inside @ weights_lum))
-    sel = inside[best]
+    from scipy.spatial import cKDTree
+    dirs = np.asarray(dirs, np.float64)
+    weights_lum = np.asarray(weights_lum, np.float64)
+    chord = 2.0 * math.sin(math.radians(cap_deg) / 2.0) * (1 + 1e-9)   # cap radius as a chord
+    tree = cKDTree(dirs)
+    pairs = tree.sparse_distance_matrix(tree, chord, output_type="coo_matrix")   # memory ~ N x cap
+    cap = np.bincount(pairs.row, weights=weights_lum[pairs.col], minlength=len(dirs))   # self pairs included
+    best = int(np.argmax(cap))
+    sel = tree.query_ball_point(dirs[best], chord)
     v = (dirs[sel] * weights_lum[sel, None]).sum(0)
     return v / np.linalg.norm(v)
 
