@@ -7,10 +7,12 @@ and computes the *procedure's* ground truth: the sphere procedure
 (:func:`relight.probe.run.run_probe`, perspective, the spheres' circles given as a
 person marks them) on the rendered linear image, with the paper's **reference-image
 correction**: the procedure's pan/tilt on the scene's reference image (flash along the
-optical axis) are compared with the assumed ones -- the direction from the chrome
-sphere to the camera raised by :data:`REF_ELEVATION_DEG` (the paper assumes the light
-mounted 10 deg above; our rig's flash is 0.12 m above the camera, ~3 deg at the
-spheres' typical 2.2 m) -- and that pan/tilt offset is added to every image of the scene.
+optical axis) are compared with the assumed ones and that pan/tilt offset is added to
+every image of the scene. The paper assumes the light mounted 10 deg above the camera;
+our rig's flash is :data:`relight.scene.mid.FLASH_OFFSET_M` above it, which is 2-6 deg
+seen from the spheres at 1.2-3.2 m, so the assumed direction is the one from the chrome
+sphere to the flash, the sphere's distance following from its outline and its known
+radius (MID's probes are of known size too): :func:`expected_reference`.
 
 Layout (besides ``dataset.json`` and ``manifest.jsonl``): ``images/ID.png`` (8-bit sRGB,
 auto-exposed: median luminance 0.18), ``masked/ID.png`` (the same with both spheres
@@ -100,28 +102,51 @@ def run_procedure(exr_path: str, cfg: MidConfig, scene: scene_mid.MidScene) -> d
     return run_probe(pc).entry
 
 
-def expected_reference(entry: dict, camera_tilt_deg: float) -> tuple[float, float]:
-    """The assumed ``(pan_rel, tilt)`` of the reference image: from the chrome sphere
-    toward the camera, raised by :data:`REF_ELEVATION_DEG` (camera-frame up).
+def chrome_distance_m(entry: dict, cfg: MidConfig, radius_m: float) -> float:
+    """Distance from the camera to the chrome sphere's centre, metres, from the outline
+    circle the procedure used (``chrome_circle``, probe-photograph pixels) and the
+    sphere's known radius: ``radius / sin(half-angle of its tangent cone)``."""
+    from relight.probe.geometry import Camera, sphere_from_circle
+    size = cfg.res * cfg.probe_zoom
+    sphere = sphere_from_circle(Camera.from_fov(size, size, cfg.fov_deg), *entry["chrome_circle"])
+    return float(radius_m) / float(sphere.radius)
 
-    A sphere on the optical axis, camera level: the light is 3.1 deg above the horizon
-    toward the camera (pan 0):
+
+def expected_reference(entry: dict, camera_tilt_deg: float, distance_m: float | None = None) -> tuple[float, float]:
+    """The assumed ``(pan_rel, tilt)`` of the reference image: from the chrome sphere
+    (``distance_m`` from the camera along ``chrome_centre_camera``) to the flash,
+    :data:`relight.scene.mid.FLASH_OFFSET_M` above the camera (world up). Without a
+    distance: toward the camera raised by :data:`REF_ELEVATION_DEG` (the sphere at 2.2 m).
+
+    A sphere on the optical axis 2.2 m away, camera level: the flash is 3.1 deg above
+    the horizon toward the camera (pan 0), at 1.2 m 5.7 deg:
 
     >>> p, t = expected_reference({"chrome_centre_camera": [0.0, 0.0, -1.0]}, 0.0)
     >>> round(p, 6) % 360, round(t, 2)
     (0.0, 3.12)
+    >>> p, t = expected_reference({"chrome_centre_camera": [0.0, 0.0, -1.0]}, 0.0, distance_m=2.2)
+    >>> round(p, 6) % 360, round(t, 2)
+    (0.0, 3.12)
+    >>> round(expected_reference({"chrome_centre_camera": [0.0, 0.0, -1.0]}, 0.0, distance_m=1.2)[1], 2)
+    5.71
     """
     to_cam = -np.asarray(entry["chrome_centre_camera"], np.float64)
     to_cam /= np.linalg.norm(to_cam)
+    if distance_m is not None:
+        right, up, forward = frames.camera_basis(camera_tilt_deg)
+        world_up_camera = np.stack([right, up, -forward]) @ np.array([0.0, 0.0, 1.0])
+        to_flash = to_cam * float(distance_m) + scene_mid.FLASH_OFFSET_M * world_up_camera
+        return frames.camera_to_pan_tilt(to_flash / np.linalg.norm(to_flash), camera_tilt_deg)
     up = np.array([0.0, 1.0, 0.0]) - to_cam[1] * to_cam
     up /= np.linalg.norm(up)
     e = math.radians(REF_ELEVATION_DEG)
     return frames.camera_to_pan_tilt(to_cam * math.cos(e) + up * math.sin(e), camera_tilt_deg)
 
 
-def reference_correction(ref_entry: dict, camera_tilt_deg: float) -> tuple[float, float]:
+def reference_correction(ref_entry: dict, camera_tilt_deg: float,
+                         distance_m: float | None = None) -> tuple[float, float]:
     """``(dpan, dtilt)`` degrees to add to the procedure's pan/tilt of a scene's images."""
-    pe, te = expected_reference(ref_entry, camera_tilt_deg)
+    pe, te = expected_reference(ref_entry, camera_tilt_deg, distance_m)
     pr, tr = frames.camera_to_pan_tilt(ref_entry["to_light_camera"], camera_tilt_deg)
     return float(frames.wrap180(pe - pr)), float(te - tr)
 
@@ -154,7 +179,8 @@ def _write_card(out: str, seed: int, cfg: MidConfig, scenes: int, n_records: int
                                      "sphere, flash above the camera turned to 25 directions; records "
                                      "carry the physical and the sphere procedure's ground truths",
                       "split_rule": "per scene: i % 5 == 4 test, i % 10 == 2 val, else train",
-                      "ref_elevation_deg": REF_ELEVATION_DEG})
+                      "reference_expected": "from the chrome sphere (distance from its outline and known "
+                                            f"radius) to the flash {scene_mid.FLASH_OFFSET_M} m above the camera"})
 
 
 def _render_scene(out: str, cfg: MidConfig, seed: int, index: int, stats: MidStats) -> tuple[list[dict], dict]:
@@ -188,7 +214,8 @@ def _render_scene(out: str, cfg: MidConfig, seed: int, index: int, stats: MidSta
     if "error" in ref_entry:
         correction, note = (0.0, 0.0), f"reference probe failed: {ref_entry['error']}"
     else:
-        correction, note = reference_correction(ref_entry, tilt), "ok"
+        distance = chrome_distance_m(ref_entry, cfg, scene.sphere_radius[0])
+        correction, note = reference_correction(ref_entry, tilt, distance), "ok"
     records, failed = [], {}
     for k in cfg.directions:
         yaw, el = scene_mid.FLASH_DIRECTIONS[k]

@@ -218,3 +218,27 @@ def test_dominant_direction_equals_the_exhaustive_cap_search():
     dirs, omega = dirs.reshape(-1, 3), omega.ravel()
     w = omega * np.exp(-((1 - dirs @ target) / 0.002))      # a ~3.6 deg wide lobe
     assert _angle_deg(dominant_direction(dirs, w), target) < 0.3
+
+
+def test_reference_expectation_points_from_the_sphere_to_the_flash():
+    """The reference correction's assumed direction: the sphere's distance from its
+    outline circle (probe-photograph pixels) and known radius, then the direction from
+    its centre to the flash above the camera -- against the sampled room's geometry."""
+    from relight import frames
+    from relight.mid import chrome_distance_m, expected_reference
+    from relight.probe.geometry import Camera, outline_circle
+    from relight.scene import mid as sm
+    cfg = sm.MidConfig()
+    size = cfg.res * cfg.probe_zoom
+    for index in range(6):
+        scene = sm.sample_scene(cfg, 2, index)
+        sphere = sm.probe_sphere(scene, "chrome")
+        circle = outline_circle(Camera.from_fov(size, size, cfg.fov_deg), sphere)
+        centre = np.asarray(sphere.centre)
+        entry = {"chrome_circle": circle, "chrome_centre_camera": (centre / np.linalg.norm(centre)).tolist()}
+        distance = chrome_distance_m(entry, cfg, scene.sphere_radius[0])
+        assert distance == pytest.approx(np.linalg.norm(scene.chrome_centre - scene.camera_position), rel=0.01)
+        to_flash = sm.camera_camera_frame(scene, scene.flash_position) - centre
+        want = frames.camera_to_pan_tilt(to_flash / np.linalg.norm(to_flash), scene.camera_tilt_deg)
+        got = expected_reference(entry, scene.camera_tilt_deg, distance)
+        assert abs(frames.wrap180(got[0] - want[0])) < 0.1 and abs(got[1] - want[1]) < 0.1
