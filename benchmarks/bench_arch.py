@@ -11,6 +11,11 @@ With ``--data DIR`` it then trains both encoders for the same wall time (``--min
 same data, seed and settings) and scores each on a test set (``--test DIR``, all of it;
 default: DIR's val split): the equal-time accuracy comparison that chooses the shipped
 encoder. Runs go to ``--out`` and resume like ``relight train``.
+
+With ``--runs RUN_A RUN_B`` it compares two runs trained side by side (same data, one
+thread each, started together, e.g. ``relight train --arch small`` and ``--arch paper``):
+from their ``log.csv``, the val errors each had reached at equal cumulative training
+time (every epoch end of either run), and the better one at the last common time.
 """
 from __future__ import annotations
 
@@ -84,6 +89,55 @@ def equal_time(data: str, test: str | None, minutes: float, res: int, out: str) 
               f"{o['colour']['mean']:.2f} / {o['colour']['median']:.2f} |")
 
 
+def read_log(run: str) -> list[dict]:
+    """A run's ``log.csv`` rows with ``minutes``: cumulative training wall time at the
+    end of each epoch (epoch time summed; a resumed run's rows continue the sum)."""
+    import csv
+    path = os.path.join(run, "log.csv")
+    if not os.path.isfile(path):
+        raise SystemExit(f"{path}: no training log (is {run} a relight train run folder?)")
+    with open(path, newline="") as f:
+        rows = [r for r in csv.DictReader(f) if r.get("epoch_time_s")]
+    total = 0.0
+    for r in rows:
+        total += float(r["epoch_time_s"]) / 60.0
+        r["minutes"] = total
+    return rows
+
+
+def at_time(rows: list[dict], minutes: float) -> dict | None:
+    """The last row finished by ``minutes`` of training (None before the first).
+
+    >>> at_time([{"minutes": 30.0, "e": 1}, {"minutes": 61.0, "e": 2}], 60.0)["e"]
+    1
+    """
+    done = [r for r in rows if r["minutes"] <= minutes + 1e-9]
+    return done[-1] if done else None
+
+
+def compare_runs(runs: list[str]) -> None:
+    """Print the val errors of two side-by-side runs at equal cumulative training time."""
+    logs = {os.path.basename(os.path.normpath(r)): read_log(r) for r in runs}
+    names = list(logs)
+    times = sorted({r["minutes"] for rows in logs.values() for r in rows})
+    common = min(rows[-1]["minutes"] if rows else 0.0 for rows in logs.values())
+    print("\n## equal training time (val split; each run's last finished epoch at that time)")
+    print("| minutes | " + " | ".join(f"{n}: epoch, direction, colour" for n in names) + " |")
+    print("|---:|" + "---|" * len(names))
+    for t in (t for t in times if t <= common + 1e-9):
+        cells = []
+        for n in names:
+            r = at_time(logs[n], t)
+            cells.append("-" if r is None else f"{r['epoch']}, {float(r['val_direction_deg']):.2f}, "
+                                               f"{float(r['val_colour_deg']):.2f}")
+        print(f"| {t:.1f} | " + " | ".join(cells) + " |")
+    last = {n: at_time(logs[n], common) for n in names}
+    if all(last.values()):
+        score = {n: float(r["val_loss"]) for n, r in last.items()}
+        print(f"\nat {common:.1f} min, lowest val loss: {min(score, key=score.get)} ("
+              + ", ".join(f"{n} {v:.4f}" for n, v in score.items()) + ")")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--threads", type=int, nargs="+", default=[1, 2])
@@ -95,7 +149,12 @@ def main() -> None:
     ap.add_argument("--res", type=int, default=RES, help="training image size")
     ap.add_argument("--out", default=os.path.expanduser("~/relight-data/arch-eqtime"),
                     help="folder of the training runs")
+    ap.add_argument("--runs", nargs=2, metavar="RUN", default=None,
+                    help="compare two existing runs at equal training time from their logs (no timing)")
     args = ap.parse_args()
+    if args.runs:
+        compare_runs(args.runs)
+        return
     torch.manual_seed(0)
     nets = {arch: LightNet(NetConfig.for_arch(arch, res=RES)).eval() for arch in ARCHES}
     print(f"| arch | name | parameters | GFLOP / image | model file (MB) |")
