@@ -92,9 +92,8 @@ def run_procedure(exr_path: str, cfg: MidConfig, scene: scene_mid.MidScene) -> d
     """The sphere procedure on one linear probe photograph (``probe_zoom`` x the image
     size), the spheres' true outline circles given (MID ships its probes' positions)."""
     from relight.probe.run import ProbeConfig, run_probe
-    from relight.probe.geometry import Camera
-    camera = Camera.from_fov(cfg.res * cfg.probe_zoom, cfg.res * cfg.probe_zoom, cfg.fov_deg)
     from relight.probe.geometry import outline_circle
+    camera = scene_mid.probe_camera(cfg, cfg.probe_zoom)
     circles = {w: outline_circle(camera, scene_mid.probe_sphere(scene, w)) for w in ("chrome", "gray")}
     pc = ProbeConfig(chrome=exr_path, chrome_circle=circles["chrome"], diffuse=exr_path,
                      diffuse_circle=circles["gray"], fov_deg=cfg.fov_deg, camera_tilt_deg=scene.camera_tilt_deg,
@@ -106,9 +105,8 @@ def chrome_distance_m(entry: dict, cfg: MidConfig, radius_m: float) -> float:
     """Distance from the camera to the chrome sphere's centre, metres, from the outline
     circle the procedure used (``chrome_circle``, probe-photograph pixels) and the
     sphere's known radius: ``radius / sin(half-angle of its tangent cone)``."""
-    from relight.probe.geometry import Camera, sphere_from_circle
-    size = cfg.res * cfg.probe_zoom
-    sphere = sphere_from_circle(Camera.from_fov(size, size, cfg.fov_deg), *entry["chrome_circle"])
+    from relight.probe.geometry import sphere_from_circle
+    sphere = sphere_from_circle(scene_mid.probe_camera(cfg, cfg.probe_zoom), *entry["chrome_circle"])
     return float(radius_m) / float(sphere.radius)
 
 
@@ -133,8 +131,7 @@ def expected_reference(entry: dict, camera_tilt_deg: float, distance_m: float | 
     to_cam = -np.asarray(entry["chrome_centre_camera"], np.float64)
     to_cam /= np.linalg.norm(to_cam)
     if distance_m is not None:
-        right, up, forward = frames.camera_basis(camera_tilt_deg)
-        world_up_camera = np.stack([right, up, -forward]) @ np.array([0.0, 0.0, 1.0])
+        world_up_camera = frames.world_to_camera([0.0, 0.0, 1.0], camera_tilt_deg)
         to_flash = to_cam * float(distance_m) + scene_mid.FLASH_OFFSET_M * world_up_camera
         return frames.camera_to_pan_tilt(to_flash / np.linalg.norm(to_flash), camera_tilt_deg)
     up = np.array([0.0, 1.0, 0.0]) - to_cam[1] * to_cam

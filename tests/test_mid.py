@@ -229,7 +229,7 @@ def test_reference_expectation_points_from_the_sphere_to_the_flash():
     from relight.probe.geometry import Camera, outline_circle
     from relight.scene import mid as sm
     cfg = sm.MidConfig()
-    size = cfg.res * cfg.probe_zoom
+    size = cfg.res * cfg.probe_zoom     # the probe photograph's camera, built here independently
     for index in range(6):
         scene = sm.sample_scene(cfg, 2, index)
         sphere = sm.probe_sphere(scene, "chrome")

@@ -198,9 +198,11 @@ def camera_camera_frame(scene: MidScene, p_world) -> np.ndarray:
     return frames.world_to_camera(np.asarray(p_world, np.float64) - scene.camera_position, scene.camera_tilt_deg)
 
 
-def probe_camera(cfg: MidConfig):
+def probe_camera(cfg: MidConfig, zoom: int = 1):
+    """The scene camera at ``zoom`` x the image size (``cfg.probe_zoom``: the probe
+    photograph's, whose pixels the procedure's circles are in)."""
     from relight.probe.geometry import Camera
-    return Camera.from_fov(cfg.res, cfg.res, cfg.fov_deg)
+    return Camera.from_fov(cfg.res * zoom, cfg.res * zoom, cfg.fov_deg)
 
 
 def probe_sphere(scene: MidScene, which: str):
@@ -461,8 +463,7 @@ class MidRenderer:
         self.crops = []
         big = cfg.res * cfg.probe_zoom
         from relight.probe.geometry import bounding_box, outline_polygon
-        from relight.probe.geometry import Camera
-        camera = Camera.from_fov(big, big, cfg.fov_deg)
+        camera = probe_camera(cfg, cfg.probe_zoom)
         for k, which in enumerate(("chrome", "gray")):
             x0, y0, x1, y1 = bounding_box(camera, probe_sphere(scene, which), margin=4 * cfg.probe_zoom)
             z = cfg.probe_zoom      # whole image pixels, so the chrome crop can be pasted in
