@@ -1,6 +1,7 @@
 """relight.net train / evaluate / predict end to end on a tiny rendered dataset,
 and the CLI's handling of bad inputs (one line on stderr, exit 2)."""
 import csv
+import dataclasses
 import json
 import math
 import os
@@ -60,6 +61,8 @@ def test_resume_equals_uninterrupted(tiny, tmp_path):
     train(cfg2, tmp_path / "straight", progress=False)
     train(cfg1, tmp_path / "cut", progress=False)
     assert train(cfg1, tmp_path / "cut", progress=False)["epoch"] == 1  # the identical command resumes
+    more_threads = dataclasses.replace(cfg1, threads=2)   # a machine resource, not a setting
+    assert train(more_threads, tmp_path / "cut", progress=False)["epoch"] == 1
     with pytest.raises(TrainingError, match="--resume"):
         train(cfg2, tmp_path / "cut", progress=False)  # other settings: refuses without --resume
     row = train(cfg2, tmp_path / "cut", resume=True, progress=False)
@@ -224,7 +227,6 @@ def test_training_calibrates_kappa_on_val(tiny, tmp_path):
 def test_run_from_before_the_kappa_head_resumes_as_it_was(tiny, tmp_path):
     """A checkpoint whose settings have no arch and no kappa weight (older runs) resumes
     with --resume on the network it was trained with (no kappa head)."""
-    import dataclasses
 
     from relight.net.loss import LossWeights
     old = TrainConfig(data_dir=tiny, epochs=1, batch_size=4, res=RES, width=8,

@@ -284,10 +284,15 @@ def _dataset_loss(model, dataset: LightDataset, cfg: TrainConfig) -> float:
         return float(light_loss(torch.from_numpy(y), target, cfg.loss_weights))
 
 
+# How a run is executed, not what it learns: changing them never blocks a plain re-run.
+RESOURCE_KEYS = ("threads", "workers")
+
+
 def _same_run(saved: dict, cfg: TrainConfig) -> bool:
-    """True when ``saved`` (settings.json) holds the settings of ``cfg`` (the identical command)."""
+    """True when ``saved`` (settings.json) holds the settings of ``cfg`` (the identical command),
+    apart from the machine resources it uses (``RESOURCE_KEYS``)."""
     now = json.loads(json.dumps(cfg.to_dict()))
-    return all(saved.get(k) == v for k, v in now.items())
+    return all(saved.get(k) == v for k, v in now.items() if k not in RESOURCE_KEYS)
 
 
 def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, ddp=None) -> dict:
