@@ -24,7 +24,8 @@ from relight.frames import direction, wrap180, wrap360
 __all__ = [
     "pan_error_deg", "tilt_error_deg", "direction_error_deg", "colour_error_deg",
     "light_errors", "summary_stats", "TILT_LEVELS", "PAN_LEVELS", "PAN_TABLE_TILT_DEG",
-    "METRICS", "tilt_level", "pan_level", "error_tables", "format_tables",
+    "METRICS", "tilt_level", "pan_level", "error_tables", "format_tables", "pan_where_defined",
+    "ZENITH_TILT_DEG",
 ]
 
 METRICS = ("pan", "tilt", "direction", "colour")  # keys of light_errors, table order
@@ -32,6 +33,7 @@ TILT_LEVELS = {"L1": (30.0, 50.0), "L2": (50.0, 70.0), "L3": (70.0, 90.0)}
 PAN_LEVELS = {"front": (315.0, 45.0), "right": (45.0, 135.0),
               "back": (135.0, 225.0), "left": (225.0, 315.0)}
 PAN_TABLE_TILT_DEG = (30.0, 70.0)  # true tilt range (inclusive) kept for the pan table
+ZENITH_TILT_DEG = 90.0             # a light here has no pan (SID2 draws tilt 90 in 1 of 13 steps)
 STATS = ("n", "mean", "median", "trimean", "best25", "worst25", "max")
 STAT_LABELS = {"mean": "Mean", "median": "Median", "trimean": "Trimean",
                "best25": "Best 25%", "worst25": "Worst 25%", "max": "Max"}
@@ -241,6 +243,37 @@ def error_tables(errors: dict[str, np.ndarray], tilt_gt_deg, pan_rel_gt_deg) -> 
         "tilt_levels": {name: _stats_by_metric(errs, tl == name) for name in TILT_LEVELS},
         "pan_levels": {name: _stats_by_metric(errs, pl == name) for name in PAN_LEVELS},
     }
+
+
+def pan_where_defined(pan_error_deg, tilt_gt_deg) -> dict:
+    """The pan error split at the zenith, where a light's pan is undefined.
+
+    A light at tilt 90 casts the same image whatever its pan, so its pan error is that of
+    a guess (uniform on [0, 180], mean 90) and lifts the mean pan error of a set by about
+    90 deg x its share of zenith lights. Table 1 keeps the paper's definition (all
+    images); this adds ``{"zenith": stats of the lights at tilt >= 90, "below_zenith":
+    stats of the rest}`` beside it.
+
+    >>> d = pan_where_defined([3.0, 5.0, 120.0], [40.0, 85.0, 90.0])
+    >>> d["zenith"]["n"], d["zenith"]["mean"], d["below_zenith"]["n"], d["below_zenith"]["mean"]
+    (1, 120.0, 2, 4.0)
+    """
+    e = np.asarray(pan_error_deg, dtype=np.float64).ravel()
+    t = np.asarray(tilt_gt_deg, dtype=np.float64).ravel()
+    if e.size != t.size:
+        raise ValueError(f"pan_where_defined needs equal lengths, got {e.size} and {t.size}")
+    at = t >= ZENITH_TILT_DEG
+    return {"zenith": summary_stats(e[at]), "below_zenith": summary_stats(e[~at])}
+
+
+def format_pan_where_defined(split: dict) -> str:
+    """One markdown line for :func:`pan_where_defined` (empty when no light is at the zenith)."""
+    z, b = split["zenith"], split["below_zenith"]
+    if z["n"] == 0:
+        return ""
+    return (f"Pan is undefined for a light at the zenith: {z['n']} of {z['n'] + b['n']} images have true "
+            f"tilt 90, their pan error is a guess's (mean {z['mean']:.2f}). Pan over the other {b['n']}: "
+            f"mean {b['mean']:.2f}, median {b['median']:.2f}.\n")
 
 
 def _metric_order(group: dict) -> list[str]:

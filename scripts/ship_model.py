@@ -31,6 +31,7 @@ sys.path.insert(0, REPO)
 
 from relight.dataset import read_card, read_manifest  # noqa: E402
 from relight.fileio import atomic_write, write_json, write_text  # noqa: E402
+from relight.metrics import METRICS, format_pan_where_defined  # noqa: E402
 from relight.net.io import MODELS_DIR, SHIPPED_MODEL, read_model_file, save_model  # noqa: E402
 from relight.net.model import LightNet, PaperEncoder, count_parameters, flops_per_image  # noqa: E402
 
@@ -38,7 +39,6 @@ PAPER = {"pan": 10.46, "tilt": 9.21, "direction": 14.22, "colour": 1.02}   # Tab
 PAPER_TILT = {"L1": (4.92, 5.14, 7.57, 1.04), "L2": (8.51, 5.14, 11.97, 0.90), "L3": (22.36, 18.33, 28.33, 1.00)}
 PAPER_PAN = {"front": (6.87, 5.10, 9.10, 0.98), "right": (6.24, 5.12, 8.80, 0.96),
              "back": (6.35, 5.09, 9.46, 1.03), "left": (6.01, 5.16, 9.03, 0.97)}
-METRICS = ("pan", "tilt", "direction", "colour")
 GENERATE_FLAGS = ("res", "spp", "target_rmse", "sampler", "colour_prior", "max_depth", "mesh_dir")
 LEGACY_DATASET = {"sampler": "independent", "colour_prior": "hsv"}   # cards written before these fields
 
@@ -123,11 +123,14 @@ def architecture_text(config) -> str:
     return head + ":\n" + "\n".join(f"  {ln}" for ln in lines)
 
 
-def train_command(s: dict, data_path: str) -> str:
+def train_command(s: dict, data_path: str, epochs: int | None = None) -> str:
     """The ``relight train`` command of a run's settings (``settings.json`` / model info):
-    options that differ from the defaults, the architecture and the kappa options always."""
+    options that differ from the defaults, the architecture and the kappa options always.
+    ``epochs``: the epochs the run has done, when it stopped before its planned total (the
+    schedule never looks at the total, so ``--epochs N`` repeats those N epochs)."""
     w = s["loss_weights"]
-    opts = [f"--data {data_path}", "--out RUN", f"--epochs {s['epochs']}", f"--patience {s['plateau_patience']}"]
+    opts = [f"--data {data_path}", "--out RUN", f"--epochs {epochs or s['epochs']}",
+            f"--patience {s['plateau_patience']}"]
     for key, flag, default in (("batch_size", "--batch-size", 16), ("lr", "--lr", 2e-4), ("res", "--res", 128),
                                ("seed", "--seed", 0), ("width", "--width", 32), ("workers", "--workers", 0)):
         if s.get(key, default) != default:
@@ -208,8 +211,14 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
     overall = ev["tables"]["overall"]
     s = meta["settings"]
     w = s["loss_weights"]
-    train_cmd_line = train_command(s, meta["train_dataset"]["path"])
     rows = list(csv.DictReader(open(os.path.join(models_dir, "sid2_small_log.csv"))))
+    unfinished = len(rows) < int(s["epochs"])
+    train_cmd_line = train_command(s, meta["train_dataset"]["path"], len(rows) if unfinished else None)
+    stopped = ""
+    if unfinished:
+        stopped = (f"\n- The run is not finished: this is its state after epoch {len(rows)} of the planned "
+                   f"{s['epochs']}. The command above (`--epochs {len(rows)}`) repeats those epochs; with "
+                   f"`--epochs {s['epochs']}` the same command continues the run.")
     drops = [f"{float(r['lr']):.0e} after epoch {r['epoch']}" for i, r in enumerate(rows)
              if i and float(r["lr"]) != float(rows[i - 1]["lr"])]
     td = meta["train_dataset"]
@@ -221,6 +230,7 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
     test_cmd, test_note = generate_command(test_card, test_data, len(read_manifest(test_data)))
     table1 = "\n".join(f"| {m.capitalize()} | {PAPER[m]:.2f} | {overall[m]['mean']:.2f} | "
                        f"{overall[m]['median']:.2f} |" for m in METRICS)
+    pan_line = format_pan_where_defined(ev["pan_where_defined"]) + "\n" if "pan_where_defined" in ev else ""
     kappa_text = ""
     if meta["config"].get("kappa_head"):
         kappa_text = (", and a fourth giving the von Mises-Fisher concentration kappa of the direction "
@@ -273,7 +283,7 @@ dataset made by `relight generate`. It is the default model of `relight predict`
   batch {s['batch_size']}, horizontal flips (pan_rel -> 360 - pan_rel), loss
   {w['pan']:g} x MSE(pan pair) + {w['tilt']:g} x MSE(tilt pair) + {w['colour']:g} x mean RGB angular error (radians).
 - {meta['trained_epochs_total']} epochs in {meta['train_time_s_all_epochs'] / 60:.0f} min on the 2-core CPU; best val
-  loss at epoch {meta['best_epoch']} ({meta['train_time_s_to_best'] / 60:.0f} min). Learning-rate drops: {', '.join(drops) or 'none'}.
+  loss at epoch {meta['best_epoch']} ({meta['train_time_s_to_best'] / 60:.0f} min). Learning-rate drops: {', '.join(drops) or 'none'}.{stopped}
 
 ## Test results (fresh test set, never used for training)
 `{test_cmd}`{(' (' + test_note + ')') if test_note else ''}
@@ -284,7 +294,7 @@ all {ev['n']} images, errors in degrees:
 |---|---:|---:|---:|
 {table1}
 
-Paper Table 2 (tilt levels) and Table 3 (pan levels, tilt 30-70) next to ours (means;
+{pan_line}Paper Table 2 (tilt levels) and Table 3 (pan levels, tilt 30-70) next to ours (means;
 paper columns first):
 
 | Level | Paper pan | Paper tilt | Paper dir. | Paper colour | Pan | Tilt | Dir. | Colour | n |

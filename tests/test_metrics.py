@@ -185,3 +185,24 @@ def test_format_tables_contains_numbers():
     assert "n/a" in m.format_tables(m.error_tables(empty, tilt[:0], pan[:0]))
     with pytest.raises(ValueError):
         m.format_tables(m.error_tables(errors, tilt, pan), stats=("average",))
+
+
+def test_pan_where_defined_separates_the_zenith_guesses():
+    """SID2 tilts (30-90, step 5): below the zenith the pan errors are half-normal with
+    sigma 3 (mean 3 sqrt(2/pi)); at the zenith a predictor can only guess, |wrap180| of a
+    uniform angle, mean 90. The split recovers both, and the two parts make the overall mean."""
+    rng = np.random.default_rng(0)
+    tilt = rng.choice(np.arange(30.0, 91.0, 5.0), size=20000)
+    at = tilt == 90.0
+    err = np.where(at, m.pan_error_deg(rng.uniform(0, 360, tilt.size), 0.0), np.abs(rng.normal(0, 3, tilt.size)))
+    d = m.pan_where_defined(err, tilt)
+    assert d["zenith"]["n"] == at.sum() and d["below_zenith"]["n"] == (~at).sum()
+    assert abs(d["zenith"]["mean"] - 90.0) < 3.0
+    assert abs(d["below_zenith"]["mean"] - 3.0 * np.sqrt(2.0 / np.pi)) < 0.1
+    parts = d["zenith"]["mean"] * d["zenith"]["n"] + d["below_zenith"]["mean"] * d["below_zenith"]["n"]
+    assert parts / tilt.size == pytest.approx(err.mean(), rel=1e-12)
+    line = m.format_pan_where_defined(d)
+    assert f"{d['below_zenith']['mean']:.2f}" in line and f"{at.sum()} of {tilt.size}" in line
+    assert m.format_pan_where_defined(m.pan_where_defined(err[~at], tilt[~at])) == ""
+    with pytest.raises(ValueError):
+        m.pan_where_defined(err, tilt[:-1])

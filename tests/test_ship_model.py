@@ -90,5 +90,14 @@ def test_card_reads_metadata_and_reports_each_prior(ship_model, world, tmp_path,
         row = next(line for line in card.splitlines() if line.startswith(f"| {name} ("))
         assert f"| {overall['colour']['mean']:.2f} | {overall['colour']['median']:.2f} |" in row
     assert (models / "sid2_small.safetensors").is_file() and (models / "sid2_small_log.csv").is_file()
+    assert "not finished" not in card and "--epochs 1 " in card
+    ev = json.load(open(tmp_path / "ev" / "metrics.json"))
+    if ev["pan_where_defined"]["zenith"]["n"]:
+        assert f"Pan over the other {ev['pan_where_defined']['below_zenith']['n']}:" in card
+    # a run stopped before its planned total: the card says so and gives the command of its epochs
+    meta = json.load(open(models / "sid2_small.json"))
+    meta["settings"]["epochs"] = 7
+    unfinished = ship_model.write_card(meta, str(tmp_path / "ev"), str(world / "test"), "notes")
+    assert "after epoch 1 of the planned 7" in unfinished and "--epochs 1 " in unfinished
     # the package's own shipped model is untouched by a run with --models-dir
     assert not os.path.samefile(models, os.path.join(ROOT, "relight", "models"))
