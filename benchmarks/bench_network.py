@@ -6,6 +6,11 @@ is about 3x the forward FLOPs (forward + two backward products). Ratios in the l
 table are measured side by side in this run, so they hold even on a busy machine.
 
     .venv/bin/python benchmarks/bench_network.py [--res 128] [--threads 1 2] [--repeats 20]
+                                                 [--model FILE|RUN|shipped]
+
+``--model`` times a trained model as ``relight predict`` runs it (``forward_with_kappa``,
+eval mode; ``shipped``: the package's model) instead of a fresh small network. The
+latency columns give the median and the minimum (an idle core's figure).
 """
 from __future__ import annotations
 
@@ -19,27 +24,41 @@ from relight.net.loss import light_loss
 from relight.net.model import LightNet, NetConfig, count_parameters, flops_per_image
 
 
-def _timed(fn, repeats: int) -> float:
-    """Median wall time of ``fn()`` in seconds after one warm-up call."""
-    fn()
+def _times(fn, repeats: int) -> list[float]:
+    """Wall times of ``fn()`` in seconds after a few warm-up calls."""
+    for _ in range(3):
+        fn()
     times = []
     for _ in range(repeats):
         t0 = time.perf_counter()
         fn()
         times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+    return times
 
 
-def bench(res: int, threads: int, repeats: int, batch: int, train_batch: int) -> dict:
+def _timed(fn, repeats: int) -> float:
+    """Median wall time of ``fn()`` in seconds after warm-up calls."""
+    return statistics.median(_times(fn, repeats))
+
+
+def _network(res: int, model: str | None) -> LightNet:
+    if model is None:
+        torch.manual_seed(0)
+        return LightNet(NetConfig(res=res))
+    from relight.net.predict import load_model
+    return load_model(None if model == "shipped" else model)
+
+
+def bench(res: int, threads: int, repeats: int, batch: int, train_batch: int, model: str | None = None) -> dict:
     torch.set_num_threads(threads)
-    torch.manual_seed(0)
-    net = LightNet(NetConfig(res=res))
+    net = _network(res, model)
+    res = net.config.res
     net.eval()
     one = torch.rand(1, 3, res, res)
     many = torch.rand(batch, 3, res, res)
     with torch.no_grad():
-        latency_s = _timed(lambda: net(one), repeats)
-        batch_s = _timed(lambda: net(many), max(3, repeats // 4))
+        single = _times(lambda: net.forward_with_kappa(one), repeats)
+        batch_s = _timed(lambda: net.forward_with_kappa(many), max(3, repeats // 4))
     net.train()
     opt = torch.optim.Adam(net.parameters(), lr=2e-4)
     x = torch.rand(train_batch, 3, res, res)
@@ -51,7 +70,8 @@ def bench(res: int, threads: int, repeats: int, batch: int, train_batch: int) ->
         loss.backward()
         opt.step()
     train_s = _timed(step, max(3, repeats // 4))
-    return {"threads": threads, "latency_ms": 1e3 * latency_s, "infer_img_s": batch / batch_s,
+    return {"threads": threads, "latency_ms": 1e3 * statistics.median(single), "latency_min_ms": 1e3 * min(single),
+            "infer_img_s": batch / batch_s,
             "train_img_s": train_batch / train_s}
 
 
@@ -62,17 +82,19 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=20)
     ap.add_argument("--batch", type=int, default=64, help="inference batch size")
     ap.add_argument("--train-batch", type=int, default=16, help="training batch size (the paper's 16)")
+    ap.add_argument("--model", default=None, help="time this model file or run folder ('shipped': the "
+                    "package's model) instead of a fresh small network; its own resolution")
     args = ap.parse_args()
-    net = LightNet(NetConfig(res=args.res))
+    net = _network(args.res, args.model)
     params, flops = count_parameters(net), flops_per_image(net)
-    print(f"LightNet at {args.res} px: {params:,} parameters, {flops / 1e9:.3f} GFLOP/image forward "
+    print(f"{args.model or 'LightNet'} ({net.config.arch}) at {net.config.res} px: {params:,} parameters, {flops / 1e9:.3f} GFLOP/image forward "
           f"(~{3 * flops / 1e9:.3f} GFLOP/image per training step)")
-    rows = [bench(args.res, t, args.repeats, args.batch, args.train_batch) for t in args.threads]
-    print(f"\n| threads | latency 1 img (ms) | inference img/s (batch {args.batch}) | training img/s "
+    rows = [bench(args.res, t, args.repeats, args.batch, args.train_batch, args.model) for t in args.threads]
+    print(f"\n| threads | latency 1 img, median (ms) | min (ms) | inference img/s (batch {args.batch}) | training img/s "
           f"(batch {args.train_batch}) | inference GFLOP/s | training GFLOP/s |")
-    print("|---:|---:|---:|---:|---:|---:|")
+    print("|---:|---:|---:|---:|---:|---:|---:|")
     for r in rows:
-        print(f"| {r['threads']} | {r['latency_ms']:.1f} | {r['infer_img_s']:.1f} | {r['train_img_s']:.1f} | "
+        print(f"| {r['threads']} | {r['latency_ms']:.1f} | {r['latency_min_ms']:.1f} | {r['infer_img_s']:.1f} | {r['train_img_s']:.1f} | "
               f"{r['infer_img_s'] * flops / 1e9:.1f} | {r['train_img_s'] * 3 * flops / 1e9:.1f} |")
     print("\n| threads | batched / single-image throughput | inference / training img/s |")
     print("|---:|---:|---:|")
