@@ -244,6 +244,13 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
                            f"on its check part the 90% cone covered {100 * b['cone90_coverage']:.1f}% -> "
                            f"{100 * a['cone90_coverage']:.1f}%, Spearman(cone, error) {rho(b['spearman_cone90_error'])} "
                            f"-> {rho(a['spearman_cone90_error'])}")
+    calibrate_line, ship_extra = "", ""
+    cal = meta.get("kappa_calibration")
+    if cal:
+        calibrate_line = (f"relight calibrate --run RUN --data {cal['data_dir']} --split {cal['split']} "
+                          f"--mode {cal['settings']['mode']} --out CAL.safetensors\n")
+        ship_extra = " --model CAL.safetensors"
+    ship_extra += "".join(f" --prior-test {name}={folder}" for name, (folder, _) in (prior_evals or {}).items())
     priors = ""
     if prior_evals:
         priors = ("\n## Colour error per surface-colour prior\n"
@@ -314,8 +321,10 @@ Full report of `relight evaluate`:
 {train_cmd}
 {test_cmd}
 {train_cmd_line}
-.venv/bin/python scripts/ship_model.py --run RUN --train-data {td['path']} --test-data {test_data} --notes NOTES.md
+{calibrate_line}.venv/bin/python scripts/ship_model.py --run RUN --train-data {td['path']} --test-data {test_data}{ship_extra} --notes NOTES.md
 ```
+(`bash scripts/make_sid2.sh` makes the SID2-scale sets and `bash scripts/train_sid2.sh ARCH` runs
+the training command on them, resumably.)
 `relight evaluate --data {test_data} --split all --out REPORT` with the shipped model
 reproduces the tables above exactly (inference is deterministic). Training on a CPU is
 repeatable in its settings, not bit for bit (thread scheduling).
