@@ -287,19 +287,3 @@ def test_kill_9_during_training_then_identical_command_resumes(tiny, tmp_path):
     with open(killed / "log.csv") as f:
         assert [r["epoch"] for r in csv.DictReader(f)] == [str(i) for i in range(1, 5)]
 
-
-def test_load_model_runs_channels_last_with_the_same_outputs(tmp_path):
-    """predict/evaluate load models in the channels-last layout (faster on the CPU); the
-    outputs are those of the default layout up to float rounding."""
-    torch.manual_seed(3)
-    from relight.net.io import save_model
-    from relight.net.model import LightNet, NetConfig
-    fresh = LightNet(NetConfig(res=RES, width=8, kappa_head=True)).eval()
-    save_model(tmp_path / "m.safetensors", fresh)
-    fast = load_model(tmp_path / "m.safetensors")
-    conv = next(m for m in fast.modules() if isinstance(m, torch.nn.Conv2d))
-    assert conv.weight.is_contiguous(memory_format=torch.channels_last) and not fast.training
-    x = torch.rand(5, 3, RES, RES)
-    with torch.no_grad():
-        (y0, k0), (y1, k1) = fresh.forward_with_kappa(x), fast.forward_with_kappa(x)
-    assert torch.allclose(y0, y1, atol=1e-5) and torch.allclose(k0, k1, rtol=1e-4)

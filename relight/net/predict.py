@@ -44,12 +44,7 @@ def is_achromatic(srgb8: np.ndarray, tolerance: int = ACHROMATIC_TOLERANCE) -> b
 
 
 def load_model(path: str | os.PathLike | None = None):
-    """Load a model file (``None``: the shipped model) in eval mode, for inference.
-
-    Its weights are in the channels-last memory format, which oneDNN's CPU convolutions
-    run faster: on the 2-core machine the shipped model's single-image latency is 0.84x
-    and batched throughput 1.8x those of the default layout (outputs agree to float
-    rounding; ``benchmarks/bench_network.py --model shipped``).
+    """Load a model file (``None``: the shipped model) in eval mode.
 
     Raises :class:`relight.net.io.ModelFileError` (one line) on a missing, corrupt or
     foreign file.
@@ -58,7 +53,7 @@ def load_model(path: str | os.PathLike | None = None):
         if not os.path.isfile(SHIPPED_MODEL):
             raise ModelFileError(f"no shipped model at {SHIPPED_MODEL}; give --model")
         path = SHIPPED_MODEL
-    return load_model_file(path).eval().to(memory_format=torch.channels_last)
+    return load_model_file(path)
 
 
 def _predict_inputs(model, inputs: list[torch.Tensor], camera_tilt_deg, batch_size: int = 32,
