@@ -25,6 +25,7 @@ import json
 import os
 import shutil
 import sys
+import torch
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, REPO)
@@ -35,6 +36,7 @@ from relight.metrics import METRICS, format_pan_where_defined  # noqa: E402
 from relight.net.io import MODELS_DIR, SHIPPED_MODEL, read_model_file, save_model  # noqa: E402
 from relight.net.model import LightNet, PaperEncoder, count_parameters, flops_per_image  # noqa: E402
 
+SHIPPED_DTYPE = torch.float16   # the package's file at half size; it is evaluated as stored
 PAPER = {"pan": 10.46, "tilt": 9.21, "direction": 14.22, "colour": 1.02}   # Table 1, SID2
 PAPER_TILT = {"L1": (4.92, 5.14, 7.57, 1.04), "L2": (8.51, 5.14, 11.97, 0.90), "L3": (22.36, 18.33, 28.33, 1.00)}
 PAPER_PAN = {"front": (6.87, 5.10, 9.10, 0.98), "right": (6.24, 5.12, 8.80, 0.96),
@@ -166,7 +168,8 @@ def ship(run: str, train_data: str, model_path: str | None = None, models_dir: s
             "kappa_calibration": info.get("kappa_calibration"), "models_dir": models_dir}
     save_model(os.path.join(models_dir, os.path.basename(SHIPPED_MODEL)), model,
                {k: meta[k] for k in ("name", "best_epoch", "best_val_loss", "settings", "train_dataset",
-                                     "kappa_temperature", "kappa_calibration") if meta[k] is not None})
+                                     "kappa_temperature", "kappa_calibration") if meta[k] is not None},
+               dtype=SHIPPED_DTYPE)
     _copy(os.path.join(run, "log.csv"), os.path.join(models_dir, "sid2_small_log.csv"))
     write_json(os.path.join(models_dir, "sid2_small.json"), meta)
     return meta
@@ -274,7 +277,7 @@ dataset made by `relight generate`. It is the default model of `relight predict`
   with `relight.imageio.to_srgb8` first, like the dataset PNGs; other sizes centre-cropped to a
   square and bilinearly resized). Output: the 7-vector of `shared/conventions.md`, decoded
   with the camera tilt (photographs: 45 deg assumed, as in the paper).
-- File: safetensors (no pickle), {os.path.getsize(SHIPPED_MODEL) / 1e6:.1f} MB; metadata in its
+- File: safetensors (no pickle), float16 weights (loaded as float32), {os.path.getsize(os.path.join(models_dir, os.path.basename(SHIPPED_MODEL))) / 1e6:.1f} MB; metadata in its
   header and in `sid2_small.json`; training log `sid2_small_log.csv`.
 
 ## Training data

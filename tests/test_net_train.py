@@ -287,3 +287,22 @@ def test_kill_9_during_training_then_identical_command_resumes(tiny, tmp_path):
     with open(killed / "log.csv") as f:
         assert [r["epoch"] for r in csv.DictReader(f)] == [str(i) for i in range(1, 5)]
 
+
+
+def test_float16_model_file_is_half_the_size_and_predicts_alike(tmp_path):
+    """The shipped file stores float16 weights (scripts/ship_model.py): half the bytes,
+    loaded back as float32, outputs within float16 rounding of the float32 file's."""
+    from relight.net.io import save_model
+    torch.manual_seed(4)
+    net = LightNet(NetConfig(res=RES, width=16, kappa_head=True)).eval()
+    save_model(tmp_path / "f32.safetensors", net)
+    save_model(tmp_path / "f16.safetensors", net, dtype=torch.float16)
+    ratio = os.path.getsize(tmp_path / "f16.safetensors") / os.path.getsize(tmp_path / "f32.safetensors")
+    assert 0.45 < ratio < 0.6
+    a, b = load_model_file(tmp_path / "f32.safetensors"), load_model_file(tmp_path / "f16.safetensors")
+    assert all(p.dtype == torch.float32 for p in b.parameters())
+    x = torch.rand(4, 3, RES, RES)
+    with torch.no_grad():
+        (ya, ka), (yb, kb) = a.forward_with_kappa(x), b.forward_with_kappa(x)
+    assert torch.allclose(ya, yb, atol=5e-3) and not torch.equal(ya, yb)
+    assert torch.allclose(ka, kb, rtol=2e-2)

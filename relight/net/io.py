@@ -1,7 +1,8 @@
 """Model weights on disk: safetensors (no pickle) with JSON metadata in its header.
 
 A model file ``*.safetensors`` holds the network's state dict (float32 weights and
-batch-norm buffers) and string metadata: ``format`` (= :data:`MODEL_FORMAT`),
+batch-norm buffers, or float16 for a shipped file: half the size, loaded back as float32)
+and string metadata: ``format`` (= :data:`MODEL_FORMAT`),
 ``arch`` (a name of :data:`relight.net.model.ARCHES`), ``config`` (the
 :class:`~relight.net.model.NetConfig` as JSON) and ``info`` (free JSON: training
 settings, data, epoch). Anything else -- a missing file, a different format, wrong
@@ -22,11 +23,14 @@ MODELS_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file
 SHIPPED_MODEL = os.path.join(MODELS_DIR, "sid2_small.safetensors")
 
 
-def save_model(path: str | os.PathLike, model: LightNet, info: dict | None = None) -> None:
-    """Write ``model`` (weights + config + ``info``) to ``path`` atomically."""
+def save_model(path: str | os.PathLike, model: LightNet, info: dict | None = None,
+               dtype: torch.dtype | None = None) -> None:
+    """Write ``model`` (weights + config + ``info``) to ``path`` atomically; ``dtype``
+    (e.g. ``torch.float16``) stores the floating-point tensors in that type."""
     from safetensors.torch import save_file
     path = os.fspath(path)
-    state = {k: v.detach().cpu().contiguous() for k, v in model.state_dict().items()}
+    state = {k: v.detach().cpu().to(dtype if dtype is not None and v.is_floating_point() else v.dtype)
+             .contiguous() for k, v in model.state_dict().items()}
     meta = {"format": MODEL_FORMAT, "arch": model.config.arch_name,
             "config": json.dumps(model.config.to_dict()), "info": json.dumps(info or {})}
     from relight.fileio import atomic_write
