@@ -25,6 +25,7 @@ __all__ = [
     "pan_error_deg", "tilt_error_deg", "direction_error_deg", "colour_error_deg",
     "light_errors", "summary_stats", "TILT_LEVELS", "PAN_LEVELS", "PAN_TABLE_TILT_DEG",
     "METRICS", "tilt_level", "pan_level", "error_tables", "format_tables", "pan_where_defined",
+    "format_pan_where_defined",
     "ZENITH_TILT_DEG",
 ]
 
