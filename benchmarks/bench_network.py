@@ -9,12 +9,14 @@ table are measured side by side in this run, so they hold even on a busy machine
                                                  [--model FILE|RUN|shipped]
 
 ``--model`` times a trained model as ``relight predict`` runs it (``forward_with_kappa``,
-eval mode; ``shipped``: the package's model) instead of a fresh small network. The
-latency columns give the median and the minimum (an idle core's figure).
+eval mode, batch norms folded; ``shipped``: the package's model) instead of a fresh small
+network, and prints the folded / unfolded latency ratio measured alternately in the same
+run. The latency columns give the median and the minimum (an idle core's figure).
 """
 from __future__ import annotations
 
 import argparse
+import copy
 import statistics
 import time
 
@@ -42,11 +44,27 @@ def _timed(fn, repeats: int) -> float:
 
 
 def _network(res: int, model: str | None) -> LightNet:
+    """A fresh small network, or the model file as training loads it (unfolded)."""
     if model is None:
         torch.manual_seed(0)
         return LightNet(NetConfig(res=res))
-    from relight.net.predict import load_model
-    return load_model(None if model == "shipped" else model)
+    from relight.net.io import SHIPPED_MODEL, load_model_file
+    return load_model_file(SHIPPED_MODEL if model == "shipped" else model)
+
+
+def _folded_ratio(net: LightNet, one: torch.Tensor, repeats: int) -> tuple[float, list[float]]:
+    """Median latency of the folded copy over the unfolded one, the two timed
+    alternately (so both see the same machine), and the folded copy's times."""
+    folded = copy.deepcopy(net).fold_batchnorm()
+    plain, fast = [], []
+    for _ in range(3):
+        net.forward_with_kappa(one), folded.forward_with_kappa(one)
+    for _ in range(repeats):
+        for f, out in ((net, plain), (folded, fast)):
+            t0 = time.perf_counter()
+            f.forward_with_kappa(one)
+            out.append(time.perf_counter() - t0)
+    return statistics.median(fast) / statistics.median(plain), fast
 
 
 def bench(res: int, threads: int, repeats: int, batch: int, train_batch: int, model: str | None = None) -> dict:
@@ -56,9 +74,15 @@ def bench(res: int, threads: int, repeats: int, batch: int, train_batch: int, mo
     net.eval()
     one = torch.rand(1, 3, res, res)
     many = torch.rand(batch, 3, res, res)
+    ratio = None
     with torch.no_grad():
-        single = _times(lambda: net.forward_with_kappa(one), repeats)
-        batch_s = _timed(lambda: net.forward_with_kappa(many), max(3, repeats // 4))
+        if model is None:
+            single = _times(lambda: net.forward_with_kappa(one), repeats)
+            batch_s = _timed(lambda: net.forward_with_kappa(many), max(3, repeats // 4))
+        else:   # as relight predict runs it: batch norms folded
+            ratio, single = _folded_ratio(net, one, repeats)
+            folded = copy.deepcopy(net).fold_batchnorm()
+            batch_s = _timed(lambda: folded.forward_with_kappa(many), max(3, repeats // 4))
     net.train()
     opt = torch.optim.Adam(net.parameters(), lr=2e-4)
     x = torch.rand(train_batch, 3, res, res)
@@ -71,7 +95,7 @@ def bench(res: int, threads: int, repeats: int, batch: int, train_batch: int, mo
         opt.step()
     train_s = _timed(step, max(3, repeats // 4))
     return {"threads": threads, "latency_ms": 1e3 * statistics.median(single), "latency_min_ms": 1e3 * min(single),
-            "infer_img_s": batch / batch_s,
+            "infer_img_s": batch / batch_s, "folded_ratio": ratio,
             "train_img_s": train_batch / train_s}
 
 
@@ -101,6 +125,10 @@ def main() -> None:
     for r in rows:
         print(f"| {r['threads']} | {r['infer_img_s'] * r['latency_ms'] / 1e3:.2f} | "
               f"{r['infer_img_s'] / r['train_img_s']:.2f} |")
+    for r in rows:
+        if r["folded_ratio"] is not None:
+            print(f"\n{r['threads']} threads: latency with batch norms folded / unfolded = {r['folded_ratio']:.3f} "
+                  f"(median, timed alternately)")
     if len(rows) > 1:
         base = rows[0]
         for r in rows[1:]:

@@ -233,7 +233,10 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
     test_cmd, test_note = generate_command(test_card, test_data, len(read_manifest(test_data)))
     table1 = "\n".join(f"| {m.capitalize()} | {PAPER[m]:.2f} | {overall[m]['mean']:.2f} | "
                        f"{overall[m]['median']:.2f} |" for m in METRICS)
-    pan_line = format_pan_where_defined(ev["pan_where_defined"]) + "\n" if "pan_where_defined" in ev else ""
+    pan_line = format_pan_where_defined(ev["pan_where_defined"]) if "pan_where_defined" in ev else ""
+    if pan_line:   # said once, beside Table 1, not again inside the embedded report
+        report = report.replace(pan_line, "", 1)
+        pan_line += "\n"
     kappa_text = ""
     if meta["config"].get("kappa_head"):
         kappa_text = (", and a fourth giving the von Mises-Fisher concentration kappa of the direction "

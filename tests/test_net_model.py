@@ -101,3 +101,37 @@ def test_kappa_head_sees_the_embedding_detached():
     kappa.sum().backward()
     assert all(p.grad is None for n, p in net.named_parameters() if not n.startswith("kappa_head"))
     assert all(p.grad is not None for n, p in net.named_parameters() if n.startswith("kappa_head"))
+
+
+@pytest.mark.parametrize("arch", ["small", "paper"])
+def test_folded_batchnorm_gives_the_same_outputs(arch, tmp_path):
+    """Folding each batch norm into its convolution is exact algebra in eval mode: the
+    outputs agree to float32 rounding, no batch norm is left, and the folded network
+    refuses training and saving (its state dict no longer matches a model file)."""
+    import copy
+
+    from relight.net.io import save_model
+    torch.manual_seed(0)
+    net = LightNet(NetConfig(res=64, width=8, arch=arch))
+    for m in net.modules():   # batch norms far from identity, so folding has work to do
+        if isinstance(m, torch.nn.BatchNorm2d):
+            m.running_mean.uniform_(-0.5, 0.5)
+            m.running_var.uniform_(0.2, 3.0)
+            m.weight.data.uniform_(0.5, 2.0)
+            m.bias.data.uniform_(-0.3, 0.3)
+    net.eval()
+    x = torch.rand(3, 3, 64, 64)
+    folded = copy.deepcopy(net).fold_batchnorm()
+    with torch.no_grad():
+        (y0, k0), (y1, k1) = net.forward_with_kappa(x), folded.forward_with_kappa(x)
+    assert not any(isinstance(m, torch.nn.BatchNorm2d) for m in folded.modules())
+    assert any(isinstance(m, torch.nn.BatchNorm2d) for m in net.modules())
+    scale = y0.abs().max().item()
+    assert (y1 - y0).abs().max().item() <= 1e-4 * scale
+    assert torch.allclose(k1, k0, rtol=1e-4)
+    assert folded.folded and not net.folded and not folded.training
+    with pytest.raises(RuntimeError, match="inference only"):
+        folded.train()
+    with pytest.raises(ValueError, match="folded"):
+        save_model(tmp_path / "m.safetensors", folded)
+    assert not (tmp_path / "m.safetensors").exists()

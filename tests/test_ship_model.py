@@ -94,6 +94,19 @@ def test_card_reads_metadata_and_reports_each_prior(ship_model, world, tmp_path,
     ev = json.load(open(tmp_path / "ev" / "metrics.json"))
     if ev["pan_where_defined"]["zenith"]["n"]:
         assert f"Pan over the other {ev['pan_where_defined']['below_zenith']['n']}:" in card
+    # a test set with zenith lights: the pan split is said once, beside Table 1, not again in
+    # the embedded evaluate report (which has it too)
+    from relight.metrics import format_pan_where_defined
+    split = {"zenith": {"n": 1, "mean": 90.0, "median": 90.0}, "below_zenith": {"n": 3, "mean": 4.0, "median": 3.0}}
+    line = format_pan_where_defined(split)
+    ev["pan_where_defined"] = split
+    (tmp_path / "ev" / "metrics.json").write_text(json.dumps(ev))
+    report = (tmp_path / "ev" / "report.md").read_text()
+    (tmp_path / "ev" / "report.md").write_text(report.replace("**Colour-constancy", line + "\n**Colour-constancy", 1))
+    assert (tmp_path / "ev" / "report.md").read_text().count(line) == 1
+    zenith_card = ship_model.write_card(json.load(open(models / "sid2_small.json")), str(tmp_path / "ev"),
+                                        str(world / "test"), "notes")
+    assert zenith_card.count(line.strip()) == 1 and "Pan over the other 3: mean 4.00" in zenith_card
     # a run stopped before its planned total: the card says so and gives the command of its epochs
     meta = json.load(open(models / "sid2_small.json"))
     meta["settings"]["epochs"] = 7

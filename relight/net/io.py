@@ -29,6 +29,9 @@ def save_model(path: str | os.PathLike, model: LightNet, info: dict | None = Non
     (e.g. ``torch.float16``) stores the floating-point tensors in that type."""
     from safetensors.torch import save_file
     path = os.fspath(path)
+    if model.folded:
+        raise ValueError("cannot save a network with folded batch norms (inference only); "
+                         "save the one load_model_file returns")
     state = {k: v.detach().cpu().to(dtype if dtype is not None and v.is_floating_point() else v.dtype)
              .contiguous() for k, v in model.state_dict().items()}
     meta = {"format": MODEL_FORMAT, "arch": model.config.arch_name,

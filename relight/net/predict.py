@@ -44,7 +44,9 @@ def is_achromatic(srgb8: np.ndarray, tolerance: int = ACHROMATIC_TOLERANCE) -> b
 
 
 def load_model(path: str | os.PathLike | None = None):
-    """Load a model file (``None``: the shipped model) in eval mode.
+    """Load a model file (``None``: the shipped model) for inference: eval mode, batch
+    norms folded into the convolutions (:meth:`~relight.net.model.LightNet.fold_batchnorm`).
+    To train, calibrate or save a model, use :func:`relight.net.io.load_model_file`.
 
     Raises :class:`relight.net.io.ModelFileError` (one line) on a missing, corrupt or
     foreign file.
@@ -53,7 +55,7 @@ def load_model(path: str | os.PathLike | None = None):
         if not os.path.isfile(SHIPPED_MODEL):
             raise ModelFileError(f"no shipped model at {SHIPPED_MODEL}; give --model")
         path = SHIPPED_MODEL
-    return load_model_file(path)
+    return load_model_file(path).fold_batchnorm()
 
 
 def _predict_inputs(model, inputs: list[torch.Tensor], camera_tilt_deg, batch_size: int = 32,
