@@ -13,7 +13,7 @@ Every step resumes: re-running the same command reuses the finished rooms and ru
 The measured run: 16 rooms x 25 flash directions + 16 reference images (seed 1, 96 px,
 64 light paths a pixel; the probes at 288 px equivalent, 16 spp: ~30 minutes of rendering on
 the shared 2-core machine), scene splits (i % 5 == 4 test, i % 10 == 2 val),
-fine-tuning for 10 epochs from relight/models/sid2_small.safetensors (Adam 2e-4, batch 16,
+fine-tuning for 10 epochs from relight/models/sid2.safetensors (Adam 2e-4, batch 16,
 flips, seed 0).
 """
 from __future__ import annotations

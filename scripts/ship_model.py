@@ -4,8 +4,8 @@
         [--model CALIBRATED.safetensors] [--prior-test hsv=DIR --prior-test munsell=DIR]
 
 1. copies RUN/best.safetensors (or --model, e.g. the output of ``relight calibrate`` on
-   RUN; weights unchanged) to relight/models/sid2_small.safetensors with its metadata,
-   plus sid2_small.json and the training log sid2_small_log.csv;
+   RUN; weights unchanged) to relight/models/sid2.safetensors with its metadata,
+   plus sid2.json and the training log sid2_log.csv;
 2. runs ``relight evaluate`` with the shipped model on every image of TEST (a set never
    used for training) into TEST-eval/ (or --eval-out), and on each --prior-test set (a
    test set of one surface-colour prior) into EVAL-OUT-prior-NAME/;
@@ -33,7 +33,7 @@ sys.path.insert(0, REPO)
 from relight.dataset import read_card, read_manifest  # noqa: E402
 from relight.fileio import atomic_write, write_json, write_text  # noqa: E402
 from relight.metrics import METRICS, format_pan_where_defined  # noqa: E402
-from relight.net.io import MODELS_DIR, SHIPPED_MODEL, read_model_file, save_model  # noqa: E402
+from relight.net.io import MODELS_DIR, SHIPPED_MODEL, SHIPPED_NAME, read_model_file, save_model  # noqa: E402
 from relight.net.model import LightNet, PaperEncoder, count_parameters, flops_per_image  # noqa: E402
 
 SHIPPED_DTYPE = torch.float16   # the package's file at half size; it is evaluated as stored
@@ -156,7 +156,7 @@ def ship(run: str, train_data: str, model_path: str | None = None, models_dir: s
     model = LightNet(config)
     model.load_state_dict(state)
     card = read_card(train_data)
-    meta = {"name": "sid2_small", "arch": config.arch_name, "config": config.to_dict(),
+    meta = {"name": SHIPPED_NAME, "arch": config.arch_name, "config": config.to_dict(),
             "parameters": count_parameters(model), "gflop_per_image": flops_per_image(model) / 1e9,
             "trained_epochs_total": len(rows), "best_epoch": best, "best_val_loss": info["val_loss"],
             "train_images_per_epoch": [int(rows[0]["n_train"]), int(rows[-1]["n_train"])],
@@ -170,8 +170,8 @@ def ship(run: str, train_data: str, model_path: str | None = None, models_dir: s
                {k: meta[k] for k in ("name", "best_epoch", "best_val_loss", "settings", "train_dataset",
                                      "kappa_temperature", "kappa_calibration") if meta[k] is not None},
                dtype=SHIPPED_DTYPE)
-    _copy(os.path.join(run, "log.csv"), os.path.join(models_dir, "sid2_small_log.csv"))
-    write_json(os.path.join(models_dir, "sid2_small.json"), meta)
+    _copy(os.path.join(run, "log.csv"), os.path.join(models_dir, f"{SHIPPED_NAME}_log.csv"))
+    write_json(os.path.join(models_dir, f"{SHIPPED_NAME}.json"), meta)
     return meta
 
 
@@ -207,14 +207,14 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
     ev = json.load(open(os.path.join(eval_dir, "metrics.json")))
     report = open(os.path.join(eval_dir, "report.md")).read().split("\n", 4)[-1].strip()
     if os.path.isfile(os.path.join(eval_dir, "reliability.png")):   # the cones' reliability diagram
-        _copy(os.path.join(eval_dir, "reliability.png"), os.path.join(models_dir, "sid2_small_reliability.png"))
-        report = report.replace("](reliability.png)", "](sid2_small_reliability.png)")
+        _copy(os.path.join(eval_dir, "reliability.png"), os.path.join(models_dir, f"{SHIPPED_NAME}_reliability.png"))
+        report = report.replace("](reliability.png)", f"]({SHIPPED_NAME}_reliability.png)")
     config = NetConfig.from_dict(meta["config"])
     res = config.res
     overall = ev["tables"]["overall"]
     s = meta["settings"]
     w = s["loss_weights"]
-    rows = list(csv.DictReader(open(os.path.join(models_dir, "sid2_small_log.csv"))))
+    rows = list(csv.DictReader(open(os.path.join(models_dir, f"{SHIPPED_NAME}_log.csv"))))
     unfinished = len(rows) < int(s["epochs"])
     train_cmd_line = train_command(s, meta["train_dataset"]["path"], len(rows) if unfinished else None)
     stopped = ""
@@ -264,7 +264,7 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
                   "images; degrees):\n\n" + prior_rows(prior_evals) + "\n")
     data_text = (f"{train_cfg['res']} px, {noise_text(train_card)}, colour prior {train_cfg['colour_prior']}, "
                  f"depth {train_cfg['max_depth']}")
-    card = f"""# Model card: `sid2_small.safetensors`
+    card = f"""# Model card: `{SHIPPED_NAME}.safetensors`
 
 The paper's regression network (Sial et al., "Light Direction and Color Estimation from
 Single Image with Deep Regression"), trained by `relight train` on a synthetic SID2-style
@@ -281,7 +281,7 @@ dataset made by `relight generate`. It is the default model of `relight predict`
   square and bilinearly resized). Output: the 7-vector of `shared/conventions.md`, decoded
   with the camera tilt (photographs: 45 deg assumed, as in the paper).
 - File: safetensors (no pickle), float16 weights (loaded as float32), {os.path.getsize(os.path.join(models_dir, os.path.basename(SHIPPED_MODEL))) / 1e6:.1f} MB; metadata in its
-  header and in `sid2_small.json`; training log `sid2_small_log.csv`.
+  header and in `{SHIPPED_NAME}.json`; training log `{SHIPPED_NAME}_log.csv`.
 
 ## Training data
 - `{train_cmd}`{(' (' + train_note + ')') if train_note else ''}

@@ -89,7 +89,7 @@ def test_card_reads_metadata_and_reports_each_prior(ship_model, world, tmp_path,
         overall = json.load(open(tmp_path / folder / "metrics.json"))["tables"]["overall"]
         row = next(line for line in card.splitlines() if line.startswith(f"| {name} ("))
         assert f"| {overall['colour']['mean']:.2f} | {overall['colour']['median']:.2f} |" in row
-    assert (models / "sid2_small.safetensors").is_file() and (models / "sid2_small_log.csv").is_file()
+    assert (models / "sid2.safetensors").is_file() and (models / "sid2_log.csv").is_file()
     assert "not finished" not in card and "--epochs 1 " in card
     ev = json.load(open(tmp_path / "ev" / "metrics.json"))
     if ev["pan_where_defined"]["zenith"]["n"]:
@@ -104,11 +104,11 @@ def test_card_reads_metadata_and_reports_each_prior(ship_model, world, tmp_path,
     report = (tmp_path / "ev" / "report.md").read_text()
     (tmp_path / "ev" / "report.md").write_text(report.replace("**Colour-constancy", line + "\n**Colour-constancy", 1))
     assert (tmp_path / "ev" / "report.md").read_text().count(line) == 1
-    zenith_card = ship_model.write_card(json.load(open(models / "sid2_small.json")), str(tmp_path / "ev"),
+    zenith_card = ship_model.write_card(json.load(open(models / "sid2.json")), str(tmp_path / "ev"),
                                         str(world / "test"), "notes")
     assert zenith_card.count(line.strip()) == 1 and "Pan over the other 3: mean 4.00" in zenith_card
     # a run stopped before its planned total: the card says so and gives the command of its epochs
-    meta = json.load(open(models / "sid2_small.json"))
+    meta = json.load(open(models / "sid2.json"))
     meta["settings"]["epochs"] = 7
     unfinished = ship_model.write_card(meta, str(tmp_path / "ev"), str(world / "test"), "notes")
     assert "after epoch 1 of the planned 7" in unfinished and "--epochs 1 " in unfinished

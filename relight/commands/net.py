@@ -41,7 +41,7 @@ def add_commands(sub) -> None:
                    help="continue the run in --out with changed settings (e.g. more --epochs); "
                         "re-running the identical command resumes without it")
     t.add_argument("--init", default=None, metavar="MODEL",
-                   help="fine-tune this model file (e.g. relight/models/sid2_small.safetensors): its network "
+                   help="fine-tune this model file (e.g. relight/models/sid2.safetensors): its network "
                         "and weights are the starting point (--arch/--width ignored, --res must match)")
     t.add_argument("--images", choices=["visible", "masked"], default="visible",
                    help="MID-like datasets: train on the images as rendered (visible spheres) or on the "

@@ -20,7 +20,8 @@ from relight.errors import ModelFileError
 
 MODEL_FORMAT = "relight.model/v1"
 MODELS_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "models")
-SHIPPED_MODEL = os.path.join(MODELS_DIR, "sid2_small.safetensors")
+SHIPPED_NAME = "sid2"   # the shipped model: SHIPPED_NAME.safetensors, .json, _log.csv, _reliability.png
+SHIPPED_MODEL = os.path.join(MODELS_DIR, f"{SHIPPED_NAME}.safetensors")
 
 
 def save_model(path: str | os.PathLike, model: LightNet, info: dict | None = None,
