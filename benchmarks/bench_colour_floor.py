@@ -1,0 +1,100 @@
+"""How much light colour a scene can give away: the surface-colour evidence behind the
+colour error of the network (issue 8's colour target).
+
+In a one-light scene of diffuse surfaces an image shows ``albedo x light colour``, so
+the light's colour is known only as well as the scene's surfaces average out to
+something known. Two measurements:
+
+1. **Surfaces averaging out** (no rendering): the angle between the mean colour of N
+   surfaces drawn from a prior and that prior's own mean colour, for each prior
+   (``hsv`` objects: uniform per channel; ``hsv`` textures; ``munsell`` chips). This is
+   gray-world's error on a scene of N equally weighted surfaces, the floor a
+   surface-statistics estimator approaches; the paper's ShapeNet objects carry a random
+   colour per mesh part, so its images hold many more independent surfaces than ours
+   (walls, floor, 1-3 objects of one colour each).
+2. **By object count** (``--eval DIR --data DIR``): a model's colour error on a test set
+   split by the number of objects in each scene (from ``relight evaluate``'s
+   ``per_image.csv`` and the dataset's manifest).
+
+    .venv/bin/python benchmarks/bench_colour_floor.py [--draws 2000]
+        [--eval /root/relight-data/sid2-test-eval --data /root/relight-data/sid2-test]
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import os
+import sys
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from relight.dataset import read_manifest  # noqa: E402
+from relight.scene.albedo import munsell_albedos, object_reflectance, texture_colours  # noqa: E402
+
+COUNTS = (1, 3, 5, 10, 30, 100, 300)
+
+
+def angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle between rows of ``a`` and the vector ``b`` (or rows of ``b``), degrees."""
+    a = a / np.linalg.norm(a, axis=-1, keepdims=True)
+    b = b / np.linalg.norm(b, axis=-1, keepdims=True)
+    return np.degrees(np.arccos(np.clip((a * b).sum(-1), -1.0, 1.0)))
+
+
+def samplers(rng: np.random.Generator) -> dict:
+    """Name -> function(n) giving ``(n, 3)`` linear albedos of one prior."""
+    table = munsell_albedos()
+    return {
+        "hsv objects": lambda n: np.array([object_reflectance(rng, "hsv") for _ in range(n)]),
+        "hsv textures": lambda n: np.array([texture_colours(rng, 1, "hsv")[0] for _ in range(n)]),
+        "munsell chips": lambda n: table[rng.integers(0, len(table), n)],
+    }
+
+
+def averaging_table(draws: int, seed: int = 0) -> dict[str, list[float]]:
+    """Prior -> mean angle (degrees) of the mean of N surfaces from the prior's mean,
+    for each N of :data:`COUNTS`."""
+    rng = np.random.default_rng(seed)
+    out = {}
+    for name, draw in samplers(rng).items():
+        ref = draw(20000).mean(0)
+        out[name] = [float(angle_deg(np.array([draw(n).mean(0) for _ in range(draws)]), ref).mean())
+                     for n in COUNTS]
+    return out
+
+
+def by_object_count(eval_dir: str, data_dir: str) -> dict[int, tuple[int, float, float]]:
+    """Objects in the scene -> (images, colour error mean, median) of an evaluation."""
+    n_objects = {r["id"]: int(r.get("n_objects", -1)) for r in read_manifest(data_dir)}
+    errors: dict[int, list[float]] = {}
+    with open(os.path.join(eval_dir, "per_image.csv")) as f:
+        for row in csv.DictReader(f):
+            errors.setdefault(n_objects.get(row["id"], -1), []).append(float(row["colour_err_deg"]))
+    return {k: (len(v), float(np.mean(v)), float(np.median(v))) for k, v in sorted(errors.items())}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--draws", type=int, default=2000, help="scenes drawn per count (default 2000)")
+    ap.add_argument("--eval", help="a relight evaluate output folder (per_image.csv)")
+    ap.add_argument("--data", help="the dataset it evaluated (for the object counts)")
+    args = ap.parse_args()
+    table = averaging_table(args.draws)
+    print("Mean colour of N surfaces vs the prior's mean colour (gray-world's error), mean degrees:\n")
+    print("| prior | " + " | ".join(f"N={n}" for n in COUNTS) + " |")
+    print("|---|" + "---:|" * len(COUNTS))
+    for name, row in table.items():
+        print(f"| {name} | " + " | ".join(f"{v:.2f}" for v in row) + " |")
+    if args.eval and args.data:
+        print(f"\nColour error by objects in the scene ({args.eval}):\n")
+        print("| objects | images | colour mean | colour median |")
+        print("|---:|---:|---:|---:|")
+        for k, (n, mean, median) in by_object_count(args.eval, args.data).items():
+            print(f"| {k} | {n} | {mean:.2f} | {median:.2f} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
