@@ -125,14 +125,18 @@ def architecture_text(config) -> str:
     return head + ":\n" + "\n".join(f"  {ln}" for ln in lines)
 
 
-def train_command(s: dict, data_path: str, epochs: int | None = None) -> str:
+def train_command(s: dict, data_path: str, epochs: int | None = None, out: str = "RUN",
+                  init: str | None = None) -> str:
     """The ``relight train`` command of a run's settings (``settings.json`` / model info):
     options that differ from the defaults, the architecture and the kappa options always.
     ``epochs``: the epochs the run has done, when it stopped before its planned total (the
-    schedule never looks at the total, so ``--epochs N`` repeats those N epochs)."""
+    schedule never looks at the total, so ``--epochs N`` repeats those N epochs). ``init``:
+    how to name the ``--init`` model of a fine-tuning run (default its recorded path)."""
     w = s["loss_weights"]
-    opts = [f"--data {data_path}", "--out RUN", f"--epochs {epochs or s['epochs']}",
+    opts = [f"--data {data_path}", f"--out {out}", f"--epochs {epochs or s['epochs']}",
             f"--patience {s['plateau_patience']}"]
+    if s.get("init"):
+        opts.append(f"--init {init or s['init']}")
     for key, flag, default in (("batch_size", "--batch-size", 16), ("lr", "--lr", 2e-4), ("res", "--res", 128),
                                ("seed", "--seed", 0), ("width", "--width", 32), ("workers", "--workers", 0)):
         if s.get(key, default) != default:
@@ -147,6 +151,18 @@ def train_command(s: dict, data_path: str, epochs: int | None = None) -> str:
     if not s.get("kappa_detach", True):
         opts.append("--kappa-into-features")
     return "relight train " + " ".join(opts)
+
+
+def base_stage(settings: dict) -> dict | None:
+    """The first stage of a fine-tuning run (``settings["init"]``, a model file that
+    ``relight train`` wrote): its settings, best epoch and val loss; ``None`` otherwise."""
+    if not settings.get("init"):
+        return None
+    _, _, info = read_model_file(settings["init"])
+    if "settings" not in info or "epoch" not in info:
+        raise SystemExit(f"{settings['init']}: the --init model has no training record (settings, epoch)")
+    return {"model": settings["init"], "settings": info["settings"], "best_epoch": int(info["epoch"]),
+            "best_val_loss": info.get("val_loss")}
 
 
 def ship(run: str, train_data: str, model_path: str | None = None, models_dir: str = MODELS_DIR) -> dict:
@@ -165,7 +181,8 @@ def ship(run: str, train_data: str, model_path: str | None = None, models_dir: s
             "train_dataset": {"path": train_data, "seed": card["seed"], "config": card["config"], "spp": card.get("spp"),
                               "records": len(read_manifest(train_data))},
             "settings": info["settings"], "run": run, "kappa_temperature": info.get("kappa_temperature"),
-            "kappa_calibration": info.get("kappa_calibration"), "models_dir": models_dir}
+            "kappa_calibration": info.get("kappa_calibration"), "models_dir": models_dir,
+            "base": base_stage(info["settings"])}
     save_model(os.path.join(models_dir, os.path.basename(SHIPPED_MODEL)), model,
                {k: meta[k] for k in ("name", "best_epoch", "best_val_loss", "settings", "train_dataset",
                                      "kappa_temperature", "kappa_calibration") if meta[k] is not None},
@@ -216,7 +233,20 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
     w = s["loss_weights"]
     rows = list(csv.DictReader(open(os.path.join(models_dir, f"{SHIPPED_NAME}_log.csv"))))
     unfinished = len(rows) < int(s["epochs"])
-    train_cmd_line = train_command(s, meta["train_dataset"]["path"], len(rows) if unfinished else None)
+    base = meta.get("base")
+    train_cmd_line = train_command(s, meta["train_dataset"]["path"], len(rows) if unfinished else None,
+                                   init="STAGE1/best.safetensors" if base else None)
+    stage1, stage1_line = "", ""
+    if base:
+        b = base["settings"]
+        stage1_cmd = train_command(b, b.get("data_dir", meta["train_dataset"]["path"]), base["best_epoch"],
+                                   out="STAGE1")
+        loss = "" if base["best_val_loss"] is None else f" {base['best_val_loss']:.4f}"
+        stage1 = (f"- Two stages. Stage 1: `{stage1_cmd}` (lr {b['lr']:g}; its best val loss{loss} is at its "
+                  f"last epoch, {base['best_epoch']}). Stage 2 fine-tunes that model (`--init`) at lr "
+                  f"{s['lr']:g}: a learning-rate drop made by hand, where the plateau schedule would wait "
+                  f"for {b['plateau_patience'] + 1} epochs without a better val loss:\n")
+        stage1_line = stage1_cmd + "\n"
     stopped = ""
     if unfinished:
         stopped = (f"\n- The run is not finished: this is its state after epoch {len(rows)} of the planned "
@@ -291,11 +321,11 @@ dataset made by `relight generate`. It is the default model of `relight predict`
   the scheduler and the choice of the best epoch. The paper used 45,000 images.
 
 ## Training
-- `{train_cmd_line}`
+{stage1}- `{train_cmd_line}`
 - Adam lr {s['lr']:g}, ReduceLROnPlateau factor 0.1 (patience {s['plateau_patience']}) on the val loss,
   batch {s['batch_size']}, horizontal flips (pan_rel -> 360 - pan_rel), loss
   {w['pan']:g} x MSE(pan pair) + {w['tilt']:g} x MSE(tilt pair) + {w['colour']:g} x mean RGB angular error (radians).
-- {meta['trained_epochs_total']} epochs in {meta['train_time_s_all_epochs'] / 60:.0f} min on the 2-core CPU; best val
+- {'Stage 2: ' if base else ''}{meta['trained_epochs_total']} epochs in {meta['train_time_s_all_epochs'] / 60:.0f} min on the 2-core CPU; best val
   loss at epoch {meta['best_epoch']} ({meta['train_time_s_to_best'] / 60:.0f} min). Learning-rate drops: {', '.join(drops) or 'none'}.{stopped}
 
 ## Test results (fresh test set, never used for training)
@@ -326,7 +356,7 @@ Full report of `relight evaluate`:
 ```
 {train_cmd}
 {test_cmd}
-{train_cmd_line}
+{stage1_line}{train_cmd_line}
 {calibrate_line}.venv/bin/python scripts/ship_model.py --run RUN --train-data {td['path']} --test-data {test_data}{ship_extra} --notes NOTES.md
 ```
 (`bash scripts/make_sid2.sh` makes the SID2-scale sets and `bash scripts/train_sid2.sh ARCH` runs

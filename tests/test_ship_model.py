@@ -114,3 +114,30 @@ def test_card_reads_metadata_and_reports_each_prior(ship_model, world, tmp_path,
     assert "after epoch 1 of the planned 7" in unfinished and "--epochs 1 " in unfinished
     # the package's own shipped model is untouched by a run with --models-dir
     assert not os.path.samefile(models, os.path.join(ROOT, "relight", "models"))
+
+
+def test_card_of_a_two_stage_run(ship_model, world, tmp_path, monkeypatch, capsys):
+    """A run fine-tuned from another run's best model (`relight train --init`, e.g. a
+    learning-rate drop by hand): the card gives both stages' commands, stage 1 with the
+    epochs up to its best one, stage 2 with --init on stage 1's best model."""
+    from relight.net.train import TrainConfig, train
+    stage2 = tmp_path / "stage2"
+    torch.manual_seed(0)
+    train(TrainConfig(data_dir=str(world / "train"), epochs=1, res=RES, batch_size=4, train_split="all",
+                      val_split="all", lr=2e-5, init=str(world / "run" / "best.safetensors")), stage2, progress=False)
+    models = tmp_path / "models"
+    monkeypatch.setattr(sys, "argv", ["ship_model.py", "--run", str(stage2), "--train-data", str(world / "train"),
+                                      "--test-data", str(world / "test"), "--eval-out", str(tmp_path / "ev"),
+                                      "--models-dir", str(models)])
+    assert ship_model.main() == 0
+    capsys.readouterr()
+    card = (models / "MODEL_CARD.md").read_text()
+    meta = json.load(open(models / "sid2.json"))
+    assert meta["base"]["model"] == str(world / "run" / "best.safetensors") and meta["base"]["best_epoch"] == 1
+    reproduce = card.split("## Reproduce")[1]
+    stage1 = next(line for line in reproduce.splitlines() if "--out STAGE1" in line)
+    stage2_cmd = next(line for line in reproduce.splitlines() if "--init STAGE1/best.safetensors" in line)
+    assert "--epochs 1 " in stage1 and "--init" not in stage1 and "--lr" not in stage1
+    assert "--lr 2e-05" in stage2_cmd and "--out RUN" in stage2_cmd
+    assert reproduce.index(stage1) < reproduce.index(stage2_cmd)
+    assert "Two stages" in card and "Stage 2: 1 epochs" in card
