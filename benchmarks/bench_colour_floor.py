@@ -31,16 +31,10 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from relight.dataset import read_manifest  # noqa: E402
+from relight.metrics import colour_error_deg  # noqa: E402
 from relight.scene.albedo import munsell_albedos, object_reflectance, texture_colours  # noqa: E402
 
 COUNTS = (1, 3, 5, 10, 30, 100, 300)
-
-
-def angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Angle between rows of ``a`` and the vector ``b`` (or rows of ``b``), degrees."""
-    a = a / np.linalg.norm(a, axis=-1, keepdims=True)
-    b = b / np.linalg.norm(b, axis=-1, keepdims=True)
-    return np.degrees(np.arccos(np.clip((a * b).sum(-1), -1.0, 1.0)))
 
 
 def samplers(rng: np.random.Generator) -> dict:
@@ -60,7 +54,7 @@ def averaging_table(draws: int, seed: int = 0) -> dict[str, list[float]]:
     out = {}
     for name, draw in samplers(rng).items():
         ref = draw(20000).mean(0)
-        out[name] = [float(angle_deg(np.array([draw(n).mean(0) for _ in range(draws)]), ref).mean())
+        out[name] = [float(colour_error_deg(np.array([draw(n).mean(0) for _ in range(draws)]), ref).mean())
                      for n in COUNTS]
     return out
 

@@ -265,7 +265,7 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
                        f"{overall[m]['median']:.2f} |" for m in METRICS)
     pan_line = format_pan_where_defined(ev["pan_where_defined"]) if "pan_where_defined" in ev else ""
     if pan_line:   # said once, beside Table 1, not again inside the embedded report
-        report = report.replace(pan_line, "", 1)
+        report = report.replace("\n" + pan_line, "", 1)
         pan_line += "\n"
     kappa_text = ""
     if meta["config"].get("kappa_head"):

@@ -288,7 +288,6 @@ def test_kill_9_during_training_then_identical_command_resumes(tiny, tmp_path):
         assert [r["epoch"] for r in csv.DictReader(f)] == [str(i) for i in range(1, 5)]
 
 
-
 def test_float16_model_file_is_half_the_size_and_predicts_alike(tmp_path):
     """The shipped file stores float16 weights (scripts/ship_model.py): half the bytes,
     loaded back as float32, outputs within float16 rounding of the float32 file's."""
