@@ -12,7 +12,10 @@ something known. Two measurements:
    surface-statistics estimator approaches; the paper's ShapeNet objects carry a random
    colour per mesh part, so its images hold many more independent surfaces than ours
    (walls, floor, 1-3 objects of one colour each).
-2. **By object count** (``--eval DIR --data DIR``): a model's colour error on a test set
+2. **The Bayes floor**: the error of the ideal observer (the posterior mean over the
+   generator's light prior, in closed form for uniform-box albedos) given the colours
+   of N surfaces: how well *any* estimator can do from N surfaces' colours.
+3. **By object count** (``--eval DIR --data DIR``): a model's colour error on a test set
    split by the number of objects in each scene (from ``relight evaluate``'s
    ``per_image.csv`` and the dataset's manifest).
 
@@ -59,6 +62,47 @@ def averaging_table(draws: int, seed: int = 0) -> dict[str, list[float]]:
     return out
 
 
+def _box_direction_loglik(u: np.ndarray, lights: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """``log p(u | l)``: the density of the direction ``u`` (N, 3) of ``a * l`` with ``a``
+    uniform in the box ``[lo, hi]^3``, for each light ``l`` (M, 3); shape (N, M).
+
+    In closed form: ``c = a * l`` has density ``1 / (V prod(l))`` on the box scaled by
+    ``l``; along the ray ``c = s u`` that box holds ``s`` in ``[max_k lo l_k / u_k,
+    min_k hi l_k / u_k]``, and ``p(u) = (s_hi^3 - s_lo^3) / (3 V prod(l))``. A shading
+    factor scales ``c`` and leaves ``u`` alone, so only the direction carries evidence."""
+    ratio = lights[None, :, :] / u[:, None, :]                  # (N, M, 3): l_k / u_k
+    s_lo, s_hi = lo * ratio.max(-1), hi * ratio.min(-1)
+    vol = np.clip(s_hi ** 3 - s_lo ** 3, 0.0, None) / 3.0
+    return np.log(vol + 1e-30) - np.log(lights.prod(-1))[None, :]
+
+
+def ideal_observer_table(draws: int, seed: int = 0, n_candidates: int = 4000) -> list[tuple[float, float]]:
+    """The Bayes floor of light-colour recovery from N surfaces, for each N of :data:`COUNTS`:
+    (mean, median) angle in degrees of the posterior-mean light colour given the
+    directions of N surfaces ``albedo * light``, albedos from the ``hsv`` object prior
+    (uniform per channel) and lights from the generator's prior (CCT 2500-10000 K
+    uniform in mireds, |Duv| <= 0.01), the posterior over ``n_candidates`` lights drawn
+    from that prior. No estimator that sees only the surfaces' colours does better on
+    average: the network's colour error cannot go below this for N visible surfaces."""
+    from relight.colour import sample_light_colour
+    from relight.scene.albedo import OBJECT_RANGE
+    rng = np.random.default_rng(seed)
+    candidates = np.array([sample_light_colour(rng)[2] for _ in range(n_candidates)])
+    out = []
+    for n in COUNTS:
+        errs = []
+        for _ in range(draws):
+            light = sample_light_colour(rng)[2]
+            c = rng.uniform(*OBJECT_RANGE, (n, 3)) * light
+            u = c / np.linalg.norm(c, axis=1, keepdims=True)
+            logp = _box_direction_loglik(u, candidates, *OBJECT_RANGE).sum(0)
+            w = np.exp(logp - logp.max())
+            est = (w[:, None] * candidates).sum(0)
+            errs.append(float(colour_error_deg(est, light)))
+        out.append((float(np.mean(errs)), float(np.median(errs))))
+    return out
+
+
 def by_object_count(eval_dir: str, data_dir: str) -> dict[int, tuple[int, float, float]]:
     """Objects in the scene -> (images, colour error mean, median) of an evaluation."""
     n_objects = {r["id"]: int(r.get("n_objects", -1)) for r in read_manifest(data_dir)}
@@ -81,6 +125,12 @@ def main() -> int:
     print("|---|" + "---:|" * len(COUNTS))
     for name, row in table.items():
         print(f"| {name} | " + " | ".join(f"{v:.2f}" for v in row) + " |")
+    print("\nBayes floor (ideal observer, posterior mean; hsv object albedos, the generator's "
+          "light prior), degrees, mean (median):\n")
+    print("| surfaces | " + " | ".join(f"N={n}" for n in COUNTS) + " |")
+    print("|---|" + "---:|" * len(COUNTS))
+    floor = ideal_observer_table(max(args.draws // 4, 50))
+    print("| hsv objects | " + " | ".join(f"{m:.2f} ({md:.2f})" for m, md in floor) + " |")
     if args.eval and args.data:
         print(f"\nColour error by objects in the scene ({args.eval}):\n")
         print("| objects | images | colour mean | colour median |")

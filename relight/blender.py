@@ -171,7 +171,9 @@ def _image(bpy, name: str, pixels: np.ndarray):
     return img
 
 
-def _mesh_object(bpy, name: str, vertices, faces, material, normals=None, uv=None):
+def _mesh_object(bpy, name: str, vertices, faces, material, normals=None, uv=None, material_index=None):
+    """A mesh object; ``material`` is one material or a list (then ``material_index``
+    gives each face's entry)."""
     me = bpy.data.meshes.new(name)
     me.from_pydata([tuple(map(float, v)) for v in vertices], [],
                    [tuple(int(i) for i in f) for f in faces])
@@ -180,7 +182,10 @@ def _mesh_object(bpy, name: str, vertices, faces, material, normals=None, uv=Non
         loop_vertex = np.zeros(len(me.loops), np.int64)
         me.loops.foreach_get("vertex_index", loop_vertex)
         layer.data.foreach_set("uv", np.asarray(uv, np.float32)[loop_vertex].ravel())
-    me.materials.append(material)
+    for mat in material if isinstance(material, (list, tuple)) else [material]:
+        me.materials.append(mat)
+    if material_index is not None:
+        me.polygons.foreach_set("material_index", np.asarray(material_index, np.int32))
     if normals is not None:
         me.polygons.foreach_set("use_smooth", np.ones(len(me.polygons), bool))
         me.normals_split_custom_set_from_vertices([tuple(map(float, n)) for n in normals])
@@ -238,8 +243,11 @@ def export_blender(spec: SceneSpec, blend_path: str | os.PathLike | None = None,
     for i, obj in enumerate(spec.objects):
         mesh = build.object_mesh(obj)
         v, n = build._object_vertices(obj, mesh)
-        mat = _material(bpy, f"obj{i}", obj.reflectance, obj.roughness)
-        scene.collection.objects.link(_mesh_object(bpy, f"obj{i}", v, mesh.faces, mat, normals=n))
+        mats = [_material(bpy, f"obj{i}" if j == 0 else f"obj{i}_part{j}", rgb, obj.roughness)
+                for j, rgb in enumerate(obj.colours)]
+        labels = build.part_labels(mesh, len(mats)) if len(mats) > 1 else None
+        scene.collection.objects.link(_mesh_object(bpy, f"obj{i}", v, mesh.faces, mats, normals=n,
+                                                   material_index=labels))
 
     cam = spec.camera
     cam_data = bpy.data.cameras.new("camera")

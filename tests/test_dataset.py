@@ -122,6 +122,21 @@ def test_other_settings_refuse_to_mix(tmp_path, mi):
         generate(tmp_path, 2, seed=5, cfg=CFG, progress=False)
 
 
+def test_card_written_before_a_setting_existed_still_resumes(tmp_path, mi):
+    # a card without a later setting (object_parts) reads it as its default: the same
+    # dataset resumes; a card whose value differs from the run's still refuses
+    import dataclasses
+    import json
+    from relight.dataset import DatasetError
+    generate(tmp_path, 1, seed=4, cfg=CFG, progress=False)
+    card = json.loads((tmp_path / "dataset.json").read_text())
+    del card["config"]["object_parts"]
+    (tmp_path / "dataset.json").write_text(json.dumps(card))
+    assert generate(tmp_path, 2, seed=4, cfg=CFG, progress=False).written == 1
+    with pytest.raises(DatasetError, match="other settings"):
+        generate(tmp_path, 3, seed=4, cfg=dataclasses.replace(CFG, object_parts=(2, 2)), progress=False)
+
+
 def test_split_is_deterministic_and_balanced():
     from relight.scene.sampling import split_of
     splits = [split_of(f"{i:06d}") for i in range(3000)]

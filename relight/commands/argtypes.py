@@ -82,6 +82,22 @@ def float_in(lo: float, hi: float, what: str = "a number", open_lo: bool = False
     return parse
 
 
+def int_range_in(lo: int, hi: int, what: str = "a count"):
+    """A type accepting ``N`` or ``LO-HI`` (integers in ``[lo, hi]``, LO <= HI) as ``(lo, hi)``."""
+    def parse(text: str) -> tuple[int, int]:
+        parts = text.split("-")
+        if len(parts) not in (1, 2):
+            raise argparse.ArgumentTypeError(f"expected {what} N or LO-HI, got {text!r}")
+        values = [_number(p, int) for p in parts]
+        a, b = values[0], values[-1]
+        if not lo <= a <= b <= hi:
+            raise argparse.ArgumentTypeError(f"expected {what} N or LO-HI with {lo} <= LO <= HI <= {hi}, "
+                                             f"got {text!r}")
+        return a, b
+    parse.__name__ = what.replace(" ", "_")
+    return parse
+
+
 MAX_RES = 4096            # pixels per side of any rendered or network image
 MAX_SPP = 1 << 16
 SEED_LIMIT = 2 ** 32
@@ -110,6 +126,11 @@ minutes = float_in(0.0, 1e6, "a time in minutes")
 relative_rmse = float_in(0.0, 1.0, "a relative RMSE", open_lo=True)
 light_pan = float_in(-360.0, 360.0, "a light pan in degrees")
 light_tilt = float_in(-90.0, 90.0, "a light tilt in degrees")
+
+
+def object_parts(text: str) -> tuple[int, int]:
+    from relight.scene.shapes import MAX_PARTS
+    return int_range_in(1, MAX_PARTS, "a part count")(text)
 
 
 def scheduler(text: str):

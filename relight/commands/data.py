@@ -26,6 +26,9 @@ def add_commands(sub) -> None:
                    help="Mitsuba sampler (default multijitter)")
     g.add_argument("--colour-prior", choices=PRIORS, default=None,
                    help="surface-colour prior of textures and objects (default hsv; see README)")
+    g.add_argument("--object-parts", type=at.object_parts, default=None, metavar="N|LO-HI",
+                   help="independently coloured parts per object, N or a range drawn per object "
+                        "(the paper colours each mesh part; default 1; see README)")
     g.add_argument("--max-depth", type=at.max_depth, default=None, help="path depth (default 4)")
     g.add_argument("--workers", type=at.workers, default=1, help="parallel render processes (default 1)")
     g.add_argument("--scheduler", type=at.scheduler, default=None,
@@ -59,6 +62,7 @@ def cmd_generate_mid(args) -> int:
     cfg = mid_config(args.config, res=args.res, spp=args.spp, max_depth=args.max_depth,
                      refused={"--workers": args.workers != 1, "--scheduler": args.scheduler,
                               "--sampler": args.sampler, "--colour-prior": args.colour_prior,
+                              "--object-parts": args.object_parts,
                               "--mesh-dir": args.mesh_dir, "--target-rmse": args.target_rmse})
     check_outputs([args.out], [args.config])
     stats = generate_mid(args.out, args.count, seed=args.seed, cfg=cfg, progress=not args.quiet,
@@ -78,7 +82,7 @@ def cmd_generate(args) -> int:
     from relight.scene.sampling import GeneratorConfig
     overrides = dict(res=args.res, spp=args.spp, max_depth=args.max_depth, sampler=args.sampler,
                      target_rmse=args.target_rmse, colour_prior=args.colour_prior,
-                     mesh_dir=os.path.abspath(args.mesh_dir) if args.mesh_dir else None)
+                     object_parts=args.object_parts, mesh_dir=os.path.abspath(args.mesh_dir) if args.mesh_dir else None)
     if args.config:
         cfg = GeneratorConfig.from_file(args.config, **overrides)
     else:

@@ -4,7 +4,8 @@ Loading a scene (``mi.load_dict``) and compiling its kernels costs more than a r
 at our sizes, so a :class:`SceneTemplate` loads one scene per *structure* (image size,
 path depth, mesh topologies; rooms of up to 8 walls share 8 wall slots) and every spec of that structure is
 written into it through ``mi.traverse``: wall/floor texture pixels, object vertex
-buffers and materials, camera pose and field of view, light position and intensity.
+buffers and materials (a per-face albedo attribute, so multi-coloured objects need no
+extra BSDFs), camera pose and field of view, light position and intensity.
 None of these is a kernel literal, so nothing recompiles. Procedural shapes all share
 one mesh topology (:mod:`relight.scene.shapes`), so they share templates.
 
@@ -35,6 +36,7 @@ N_WALL_SLOTS = 8            # rooms of up to 8 walls share one loaded scene
 FLOOR_HALF_SIZE_M = 400.0   # floor square reaches past every wall corner
 FLOOR_TILE_M = 10.0         # the floor texture repeats every 10 m
 HIDDEN_DEPTH_M = -1000.0    # where unused object slots are parked
+FACE_ALBEDO = "face_albedo"  # per-face mesh attribute read by the object BSDFs (parts)
 
 
 @dataclass(frozen=True)
@@ -131,6 +133,22 @@ def wall_to_world(k: int, n_walls: int, inradius_m: float, height_m: float,
     return m
 
 
+def face_albedos(obj: ObjectSpec, mesh: shapes.Mesh) -> np.ndarray:
+    """``(F, 3)`` float32 albedo of each face: ``obj.reflectance`` everywhere, or part j's
+    colour on the faces of part j (:func:`relight.scene.shapes.part_labels`)."""
+    colours = np.asarray(obj.colours, np.float32)
+    if len(colours) == 1:
+        return np.broadcast_to(colours[0], (len(mesh.faces), 3)).copy()
+    return colours[part_labels(mesh, len(colours))]
+
+
+@functools.lru_cache(maxsize=64)
+def part_labels(mesh: shapes.Mesh, n_parts: int) -> np.ndarray:
+    """:func:`relight.scene.shapes.part_labels`, cached (a Mesh hashes by identity, and
+    :func:`object_mesh` returns cached meshes)."""
+    return shapes.part_labels(mesh, n_parts)
+
+
 def _object_vertices(obj: ObjectSpec, mesh: shapes.Mesh) -> tuple[np.ndarray, np.ndarray]:
     """World-space vertices and normals of an object: scale, yaw about +Z, translate."""
     rot = frames.rotation_z(obj.yaw_deg)
@@ -175,9 +193,11 @@ class SceneTemplate:
         for i, (n_vertices, n_faces) in enumerate(key.slots):
             props = mi.Properties()
             props["bsdf"] = mi.load_dict({"type": rough_bsdf.PLUGIN, "roughness": 0.5,
-                                          "reflectance": {"type": "rgb", "value": [0.5, 0.5, 0.5]}})
-            scene[f"obj{i}"] = mi.Mesh(f"obj{i}", n_vertices, max(n_faces, 1), props=props,
-                                       has_vertex_normals=True, has_vertex_texcoords=False)
+                                          "reflectance": {"type": "mesh_attribute", "name": FACE_ALBEDO}})
+            mesh = mi.Mesh(f"obj{i}", n_vertices, max(n_faces, 1), props=props,
+                           has_vertex_normals=True, has_vertex_texcoords=False)
+            mesh.add_attribute(FACE_ALBEDO, 3, [0.5] * (3 * max(n_faces, 1)))
+            scene[f"obj{i}"] = mesh
         self.scene = mi.load_dict(scene)
         self.params = mi.traverse(self.scene)
         self._faces_written = [None] * len(key.slots)
@@ -208,7 +228,7 @@ class SceneTemplate:
                 obj, mesh = spec.objects[i], meshes[i]
                 v, n = _object_vertices(obj, mesh)
                 faces = mesh.faces
-                p[f"obj{i}.bsdf.reflectance.value"] = mi.Color3f(*obj.reflectance)
+                p[f"obj{i}.{FACE_ALBEDO}"] = mi.Float(face_albedos(obj, mesh).ravel())
                 p[f"obj{i}.bsdf.roughness"] = mi.Float(obj.roughness)
             else:  # park the unused slot: a tiny copy of slot 0 far below the floor
                 v, n = _object_vertices(spec.objects[0], meshes[0]) if spec.objects else (None, None)

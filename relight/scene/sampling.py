@@ -1,7 +1,9 @@
 """SID2 sampling rules: draw a random :class:`SceneSpec` like the paper's dataset.
 
 Paper, section "A synthetic dataset": 1-3 objects placed near the scene centre on the
-floor, never overlapping, each with a diffuse BSDF of random colour and roughness; a
+floor, never overlapping, each with a diffuse BSDF of random colour and roughness (the
+paper: one colour "for each mesh texture in each object"; ``object_parts`` cuts each
+procedural object into that many independently coloured parts); a
 multi-sided room with flat textures on the walls; a point light at r in [20, 50] m,
 tilt in [30, 90] deg in steps of 5, pan in [0, 360) deg in steps of 1, colour near the
 Planckian locus; the camera at r = 20 m, pan 0, tilt in [10, 70] deg, looking at the
@@ -58,6 +60,7 @@ class GeneratorConfig:
     light_pan_step_deg: float = 1.0
     light_strength: tuple[float, float] = (2.5, 4.0)   # irradiance at the centre, W/m^2
     n_objects: tuple[int, int] = (1, 3)
+    object_parts: tuple[int, int] = (1, 1)             # independently coloured parts per object
     object_size_m: tuple[float, float] = (0.8, 2.0)   # max horizontal radius after scaling
     placement_radius_m: float = 3.5                    # object centres within this disc
     object_gap_m: float = 0.1                          # minimum gap between bounding circles
@@ -92,6 +95,7 @@ class GeneratorConfig:
         rng_ok("light_r_m", 0.1, 1e4)
         rng_ok("light_tilt_deg", 0, 90)
         rng_ok("n_objects", 1, 3)
+        rng_ok("object_parts", 1, shapes.MAX_PARTS)
         rng_ok("n_walls", 3, 12)
         rng_ok("object_size_m", 0.01, 100)
         rng_ok("light_strength", 1e-6, 1e6)
@@ -215,13 +219,17 @@ def sample_scene(cfg: GeneratorConfig, dataset_seed: int, index: int) -> SceneSp
         else:
             family = str(families[int(rng.integers(0, len(families)))])
             params, mesh_path = shapes.sample_shape_params(family, rng), None
+        yaw_deg = float(np.round(rng.uniform(0.0, 360.0), 3))
+        # one-part objects draw exactly what they drew before parts existed (same images)
+        n_parts = 1 if cfg.object_parts == (1, 1) else int(rng.integers(cfg.object_parts[0],
+                                                                         cfg.object_parts[1] + 1))
+        colours = [albedo.object_reflectance(rng, prior) for _ in range(n_parts)]
         objects.append(ObjectSpec(
             family=family, params=params, mesh_path=mesh_path,
             position_m=(float(np.round(centre[0], 4)), float(np.round(centre[1], 4))),
-            yaw_deg=float(np.round(rng.uniform(0.0, 360.0), 3)),
-            size_m=size,
-            reflectance=albedo.object_reflectance(rng, prior),
-            roughness=float(np.round(rng.uniform(0.0, 1.0), 4))))
+            yaw_deg=yaw_deg, size_m=size, reflectance=colours[0],
+            roughness=float(np.round(rng.uniform(0.0, 1.0), 4)),
+            part_reflectances=tuple(colours) if n_parts > 1 else ()))
     render = RenderSpec(res=cfg.res, spp=cfg.render_spp, max_depth=cfg.max_depth,
                         seed=int(rng.integers(0, 2 ** 31)), sampler=cfg.sampler)
     return SceneSpec(id=f"{index:06d}", camera=camera, light=light, room=room,

@@ -20,6 +20,7 @@ import numpy as np
 
 from relight import frames
 from relight.errors import SceneFileError
+from relight.scene.shapes import MAX_PARTS as MAX_OBJECT_PARTS
 
 SCENE_FORMAT = "relight.scene/v1"
 
@@ -127,6 +128,11 @@ class ObjectSpec:
     normalised in object space (centred on the z axis, min z = 0, max horizontal radius
     1), then scaled uniformly by ``size_m``, turned by ``yaw_deg`` about +Z and moved
     to ``position_m`` = (x, y) on the floor. Material: rough diffuse (Oren-Nayar).
+
+    ``part_reflectances`` (optional, the paper's "random color ... for each mesh texture in
+    each object"): K >= 2 linear-RGB albedos; the mesh faces are split into K patches
+    (:func:`relight.scene.shapes.part_labels`) and patch j gets entry j. Empty: the whole
+    object has ``reflectance`` (which is entry 0 when parts are given).
     """
     family: str
     params: dict
@@ -136,6 +142,7 @@ class ObjectSpec:
     reflectance: tuple[float, float, float]
     roughness: float
     mesh_path: str | None = None
+    part_reflectances: tuple[tuple[float, float, float], ...] = ()
 
     def __post_init__(self):
         _finite("object", *self.position_m, self.yaw_deg, self.size_m, *self.reflectance, self.roughness)
@@ -145,6 +152,21 @@ class ObjectSpec:
             raise SceneFileError("object: position_m needs 2 numbers and reflectance 3")
         if not 0 <= self.roughness <= 1 or self.size_m <= 0 or not all(0 <= c <= 1 for c in self.reflectance):
             raise SceneFileError("object: roughness and reflectance in [0, 1], size_m > 0 expected")
+        parts = self.part_reflectances
+        if not isinstance(parts, (list, tuple)) or any(not isinstance(c, (list, tuple)) or len(c) != 3
+                                                       for c in parts):
+            raise SceneFileError("object: part_reflectances must be a list of [r, g, b] albedos")
+        parts = tuple(tuple(float(v) for v in c) for c in parts)
+        _finite("object part", *(v for c in parts for v in c))
+        if len(parts) == 1 or len(parts) > MAX_OBJECT_PARTS or not all(0 <= v <= 1 for c in parts for v in c):
+            raise SceneFileError(f"object: part_reflectances needs 2-{MAX_OBJECT_PARTS} albedos in [0, 1] "
+                                 f"(or none), got {len(parts)}")
+        object.__setattr__(self, "part_reflectances", parts)
+
+    @property
+    def colours(self) -> tuple[tuple[float, float, float], ...]:
+        """The albedo of each part (one entry, ``reflectance``, for a one-colour object)."""
+        return self.part_reflectances or (self.reflectance,)
 
 
 SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler")
@@ -216,6 +238,9 @@ class SceneSpec:
     # --- JSON ---------------------------------------------------------------------
     def to_dict(self) -> dict:
         d = dataclasses.asdict(self)
+        for o in d["objects"]:   # one-colour objects: no field, as in files written before it
+            if not o["part_reflectances"]:
+                del o["part_reflectances"]
         return {"format": d.pop("format"), **d}
 
     def to_json(self) -> str:
