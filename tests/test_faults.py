@@ -669,6 +669,7 @@ RANGE_BAD = {
     "--max-columns": ["0"], "--max-iters": ["0"], "--time-budget": ["0", "-5"],
     "--kappa-weight": ["-1"], "--fov": ["0", "180", "-1"], "--focal-px": ["0", "-1"],
     "--target-rmse": ["0", "-0.1", "2"], "--scheduler": ["local:0", "local:-1", "local:100000"],
+    "--object-parts": ["0", "33", "5-3", "0-4", "1-2-3", "-1", "2-"],
 }
 
 

@@ -86,9 +86,12 @@ def int_range_in(lo: int, hi: int, what: str = "a count"):
     """A type accepting ``N`` or ``LO-HI`` (integers in ``[lo, hi]``, LO <= HI) as ``(lo, hi)``."""
     def parse(text: str) -> tuple[int, int]:
         parts = text.split("-")
-        if len(parts) not in (1, 2):
-            raise argparse.ArgumentTypeError(f"expected {what} N or LO-HI, got {text!r}")
-        values = [_number(p, int) for p in parts]
+        try:
+            if len(parts) not in (1, 2):
+                raise ValueError(text)
+            values = [int(p) for p in parts]
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {what} N or LO-HI (integers), got {text!r}") from None
         a, b = values[0], values[-1]
         if not lo <= a <= b <= hi:
             raise argparse.ArgumentTypeError(f"expected {what} N or LO-HI with {lo} <= LO <= HI <= {hi}, "
