@@ -35,7 +35,8 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from relight.dataset import read_manifest  # noqa: E402
 from relight.metrics import colour_error_deg  # noqa: E402
-from relight.scene.albedo import munsell_albedos, object_reflectance, texture_colours  # noqa: E402
+from relight.scene.albedo import (box_direction_logpdf, munsell_albedos, object_reflectance,  # noqa: E402
+                                  texture_colours)
 
 COUNTS = (1, 3, 5, 10, 30, 100, 300)
 
@@ -62,20 +63,6 @@ def averaging_table(draws: int, seed: int = 0) -> dict[str, list[float]]:
     return out
 
 
-def _box_direction_loglik(u: np.ndarray, lights: np.ndarray, lo: float, hi: float) -> np.ndarray:
-    """``log p(u | l)``: the density of the direction ``u`` (N, 3) of ``a * l`` with ``a``
-    uniform in the box ``[lo, hi]^3``, for each light ``l`` (M, 3); shape (N, M).
-
-    In closed form: ``c = a * l`` has density ``1 / (V prod(l))`` on the box scaled by
-    ``l``; along the ray ``c = s u`` that box holds ``s`` in ``[max_k lo l_k / u_k,
-    min_k hi l_k / u_k]``, and ``p(u) = (s_hi^3 - s_lo^3) / (3 V prod(l))``. A shading
-    factor scales ``c`` and leaves ``u`` alone, so only the direction carries evidence."""
-    ratio = lights[None, :, :] / u[:, None, :]                  # (N, M, 3): l_k / u_k
-    s_lo, s_hi = lo * ratio.max(-1), hi * ratio.min(-1)
-    vol = np.clip(s_hi ** 3 - s_lo ** 3, 0.0, None) / 3.0
-    return np.log(vol + 1e-30) - np.log(lights.prod(-1))[None, :]
-
-
 def ideal_observer_table(draws: int, seed: int = 0, n_candidates: int = 4000) -> list[tuple[float, float]]:
     """The Bayes floor of light-colour recovery from N surfaces, for each N of :data:`COUNTS`:
     (mean, median) angle in degrees of the posterior-mean light colour given the
@@ -95,7 +82,7 @@ def ideal_observer_table(draws: int, seed: int = 0, n_candidates: int = 4000) ->
             light = sample_light_colour(rng)[2]
             c = rng.uniform(*OBJECT_RANGE, (n, 3)) * light
             u = c / np.linalg.norm(c, axis=1, keepdims=True)
-            logp = _box_direction_loglik(u, candidates, *OBJECT_RANGE).sum(0)
+            logp = box_direction_logpdf(u, candidates, *OBJECT_RANGE).sum(0)
             w = np.exp(logp - logp.max())
             est = (w[:, None] * candidates).sum(0)
             errs.append(float(colour_error_deg(est, light)))

@@ -101,6 +101,22 @@ def object_reflectance(rng: np.random.Generator, prior: str = "hsv") -> tuple[fl
     raise ValueError(f"unknown colour prior {prior!r}; valid: hsv, munsell")
 
 
+def box_direction_logpdf(u: np.ndarray, lights: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """``log p(u | l)``: the density of the direction ``u`` (N, 3) of ``a * l`` with ``a``
+    uniform in the box ``[lo, hi]^3``, for each light ``l`` (M, 3); shape (N, M).
+
+    In closed form: ``c = a * l`` has density ``1 / (V prod(l))`` on the box scaled by
+    ``l``; along the ray ``c = s u`` that box holds ``s`` in ``[max_k lo l_k / u_k,
+    min_k hi l_k / u_k]``, and ``p(u) = (s_hi^3 - s_lo^3) / (3 V prod(l))`` (up to the
+    constant ``V``, the box volume). A shading factor scales ``c`` and leaves ``u``
+    alone, so only the direction carries evidence: this is the likelihood of the ideal
+    observer of ``benchmarks/bench_colour_floor.py`` (the hsv prior's objects)."""
+    ratio = lights[None, :, :] / u[:, None, :]                  # (N, M, 3): l_k / u_k
+    s_lo, s_hi = lo * ratio.max(-1), hi * ratio.min(-1)
+    vol = np.clip(s_hi ** 3 - s_lo ** 3, 0.0, None) / 3.0
+    return np.log(vol + 1e-30) - np.log(lights.prod(-1))[None, :]
+
+
 def scene_prior(rng: np.random.Generator, prior: str) -> str:
     """The concrete prior of one scene (``mixture`` draws one; others draw nothing)."""
     if prior == "mixture":
