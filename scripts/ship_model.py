@@ -41,8 +41,9 @@ PAPER = {"pan": 10.46, "tilt": 9.21, "direction": 14.22, "colour": 1.02}   # Tab
 PAPER_TILT = {"L1": (4.92, 5.14, 7.57, 1.04), "L2": (8.51, 5.14, 11.97, 0.90), "L3": (22.36, 18.33, 28.33, 1.00)}
 PAPER_PAN = {"front": (6.87, 5.10, 9.10, 0.98), "right": (6.24, 5.12, 8.80, 0.96),
              "back": (6.35, 5.09, 9.46, 1.03), "left": (6.01, 5.16, 9.03, 0.97)}
-GENERATE_FLAGS = ("res", "spp", "target_rmse", "sampler", "colour_prior", "max_depth", "mesh_dir")
-LEGACY_DATASET = {"sampler": "independent", "colour_prior": "hsv"}   # cards written before these fields
+GENERATE_FLAGS = ("res", "spp", "target_rmse", "sampler", "colour_prior", "object_parts", "max_depth", "mesh_dir")
+LEGACY_DATASET = {"sampler": "independent", "colour_prior": "hsv",   # cards written before these fields
+                  "object_parts": [1, 1]}
 
 
 def _copy(src: str, dst: str) -> None:
@@ -51,7 +52,7 @@ def _copy(src: str, dst: str) -> None:
 
 def dataset_settings(card: dict) -> dict:
     """Generator settings of a dataset card, with the values of cards written before a
-    field existed (sampler ``independent``, prior ``hsv``) and the samples per pixel
+    field existed (sampler ``independent``, prior ``hsv``, one-colour objects) and the samples per pixel
     the run took (``spp_used``: the card's ``spp``, resolved from the noise target)."""
     cfg = LEGACY_DATASET | dict(card["config"])
     cfg["spp_used"] = card.get("spp") or cfg.get("spp")
@@ -68,7 +69,7 @@ def noise_text(card: dict) -> str:
 
 def generate_command(card: dict, path: str, count: int) -> tuple[str, str]:
     """``(command, note)``: the ``relight generate`` command that makes a dataset with the
-    card's settings (explicit options for the noise, sampler and colour prior; settings
+    card's settings (explicit options for the noise, sampler, colour prior and object parts; settings
     without an option go into ``--config CONFIG.json``, which the note spells out)."""
     import dataclasses
 
@@ -83,6 +84,8 @@ def generate_command(card: dict, path: str, count: int) -> tuple[str, str]:
     else:
         opts.append(f"--target-rmse {cfg['target_rmse']:g}")
     opts += [f"--sampler {cfg['sampler']}", f"--colour-prior {cfg['colour_prior']}"]
+    lo, hi = cfg["object_parts"]
+    opts.append(f"--object-parts {lo}" if lo == hi else f"--object-parts {lo}-{hi}")
     if cfg.get("max_depth", default["max_depth"]) != default["max_depth"]:
         opts.append(f"--max-depth {cfg['max_depth']}")
     if cfg.get("mesh_dir"):

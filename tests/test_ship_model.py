@@ -29,17 +29,26 @@ def test_generate_command_of_a_noise_target_card(ship_model):
                                              "split": [0.9, 0.1, 0.0]}}
     cmd, note = ship_model.generate_command(card, "/data/x", 2500)
     assert cmd.startswith("relight generate --count 2500 --out /data/x --seed 2 ")
-    assert "--target-rmse 0.02 --sampler multijitter --colour-prior munsell" in cmd
+    assert "--target-rmse 0.02 --sampler multijitter --colour-prior munsell --object-parts 1 " in cmd
     assert "--spp" not in cmd and "--res" not in cmd and "None" not in cmd
     assert "--config CONFIG.json" in cmd and '"split": [0.9, 0.1, 0.0]' in note
     assert ship_model.noise_text(card) == "sampler multijitter, 16 spp (noise target: relative RMSE 0.02)"
+
+
+def test_generate_command_names_the_object_parts(ship_model):
+    card = {"seed": 5, "spp": 16, "config": {"res": 128, "spp": None, "target_rmse": 0.02, "sampler": "multijitter",
+                                             "colour_prior": "hsv", "object_parts": [1, 32]}}
+    cmd, note = ship_model.generate_command(card, "d", 2500)
+    assert "--colour-prior hsv --object-parts 1-32" in cmd and "--config" not in cmd and note == ""
+    card["config"]["object_parts"] = [4, 4]
+    assert "--object-parts 4 " in ship_model.generate_command(card, "d", 2500)[0] + " "
 
 
 def test_generate_command_of_a_legacy_card(ship_model):
     """Cards written before the sampler and prior fields: independent sampler, hsv prior."""
     card = {"seed": 1, "config": {"res": 64, "spp": 32, "max_depth": 4}}
     cmd, note = ship_model.generate_command(card, "d", 10)
-    assert "--res 64 --spp 32 --sampler independent --colour-prior hsv" in cmd
+    assert "--res 64 --spp 32 --sampler independent --colour-prior hsv --object-parts 1" in cmd
     assert "--target-rmse" not in cmd and "--config" not in cmd and note == ""
     assert ship_model.noise_text(card) == "sampler independent, 32 spp (fixed)"
 
