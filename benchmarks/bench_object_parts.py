@@ -27,8 +27,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from relight.imageio import read_exr  # noqa: E402
-from relight.inverse.colour_baselines import estimate  # noqa: E402
+from relight.inverse.colour_baselines import estimate_jobs  # noqa: E402
+from relight.inverse.jobs import dataset_jobs  # noqa: E402
 from relight.metrics import colour_error_deg  # noqa: E402
 from relight.net.data import LightDataset  # noqa: E402
 
@@ -43,14 +43,11 @@ def _named(text: str) -> tuple[str, str]:
 
 
 def baseline_errors(data_dir: str, split: str) -> dict[str, np.ndarray]:
-    ds = LightDataset(data_dir, split, 64, cache=False)
-    truth = ds.truth()["rgb"]
-    est = {b: [] for b in BASELINES}
-    for rec in ds.records:
-        img = read_exr(os.path.join(data_dir, rec["exr"]))
-        for b in BASELINES:
-            est[b].append(estimate(b, img))
-    return {b: colour_error_deg(np.array(v), truth) for b, v in est.items()}
+    """Colour error of each classical baseline on the split (``relight baseline``'s path)."""
+    jobs = dataset_jobs(data_dir, split)
+    truth = LightDataset(data_dir, split, 64, cache=False).truth()["rgb"]
+    return {b: colour_error_deg(np.array([e["rgb"] for e in estimate_jobs(b, jobs, progress=False)]), truth)
+            for b in BASELINES}
 
 
 def model_errors(model_path: str, data_dir: str, split: str) -> np.ndarray:

@@ -39,7 +39,7 @@ import numpy as np
 
 from relight import frames
 from relight.fileio import LOCK_NAME, FolderLock, remove_temps, write_bytes, write_json
-from relight.scene.sampling import GeneratorConfig, sample_scene, split_of
+from relight.scene.sampling import LEGACY_CONFIG, GeneratorConfig, sample_scene, split_of
 from relight.scene.spec import SceneSpec
 from relight.errors import DatasetError
 
@@ -203,8 +203,8 @@ def _write_card(out: str, seed: int, cfg: GeneratorConfig, count: int, n_records
     if os.path.isfile(card_path) and n_records:  # a card without records binds nothing
         old = read_card(out)
         same = {k: old.get(k) for k in settings}
-        if isinstance(same["config"], dict):   # a setting added later reads as its default,
-            same["config"] = {**GeneratorConfig().to_dict(), **same["config"]}  # the old behaviour
+        if isinstance(same["config"], dict):   # a setting added later reads as its old value
+            same["config"] = {**LEGACY_CONFIG, **same["config"]}
         if json.loads(json.dumps(same)) != json.loads(json.dumps(settings)):
             raise DatasetError(f"{out} holds a dataset made with other settings (seed or config); "
                                "use another --out or the same settings to resume")

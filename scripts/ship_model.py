@@ -42,8 +42,6 @@ PAPER_TILT = {"L1": (4.92, 5.14, 7.57, 1.04), "L2": (8.51, 5.14, 11.97, 0.90), "
 PAPER_PAN = {"front": (6.87, 5.10, 9.10, 0.98), "right": (6.24, 5.12, 8.80, 0.96),
              "back": (6.35, 5.09, 9.46, 1.03), "left": (6.01, 5.16, 9.03, 0.97)}
 GENERATE_FLAGS = ("res", "spp", "target_rmse", "sampler", "colour_prior", "object_parts", "max_depth", "mesh_dir")
-LEGACY_DATASET = {"sampler": "independent", "colour_prior": "hsv",   # cards written before these fields
-                  "object_parts": [1, 1]}
 
 
 def _copy(src: str, dst: str) -> None:
@@ -54,7 +52,8 @@ def dataset_settings(card: dict) -> dict:
     """Generator settings of a dataset card, with the values of cards written before a
     field existed (sampler ``independent``, prior ``hsv``, one-colour objects) and the samples per pixel
     the run took (``spp_used``: the card's ``spp``, resolved from the noise target)."""
-    cfg = LEGACY_DATASET | dict(card["config"])
+    from relight.scene.sampling import LEGACY_CONFIG
+    cfg = LEGACY_CONFIG | dict(card["config"])
     cfg["spp_used"] = card.get("spp") or cfg.get("spp")
     return cfg
 

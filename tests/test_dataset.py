@@ -123,8 +123,10 @@ def test_other_settings_refuse_to_mix(tmp_path, mi):
 
 
 def test_card_written_before_a_setting_existed_still_resumes(tmp_path, mi):
-    # a card without a later setting (object_parts) reads it as its default: the same
-    # dataset resumes; a card whose value differs from the run's still refuses
+    # a card without a later setting (object_parts) reads it as the value used before the
+    # setting existed: the same dataset resumes; a card whose value differs from the
+    # run's still refuses, and so does a card without a sampler (made with
+    # "independent") resumed under today's default sampler
     import dataclasses
     import json
     from relight.dataset import DatasetError
@@ -135,6 +137,11 @@ def test_card_written_before_a_setting_existed_still_resumes(tmp_path, mi):
     assert generate(tmp_path, 2, seed=4, cfg=CFG, progress=False).written == 1
     with pytest.raises(DatasetError, match="other settings"):
         generate(tmp_path, 3, seed=4, cfg=dataclasses.replace(CFG, object_parts=(2, 2)), progress=False)
+    assert CFG.sampler != "independent"
+    del card["config"]["sampler"]
+    (tmp_path / "dataset.json").write_text(json.dumps(card))
+    with pytest.raises(DatasetError, match="other settings"):
+        generate(tmp_path, 3, seed=4, cfg=CFG, progress=False)
 
 
 def test_split_is_deterministic_and_balanced():

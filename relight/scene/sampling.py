@@ -24,7 +24,7 @@ import numpy as np
 
 from relight import colour
 from relight.scene import albedo, noise, shapes, textures
-from relight.scene.spec import (SAMPLERS, CameraSpec, LightSpec, ObjectSpec, RenderSpec, RoomSpec,
+from relight.scene.spec import (LEGACY_SAMPLER, SAMPLERS, CameraSpec, LightSpec, ObjectSpec, RenderSpec, RoomSpec,
                                 SceneSpec)
 from relight.errors import ConfigError
 
@@ -133,6 +133,11 @@ class GeneratorConfig:
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
+
+
+# Settings added after the first datasets, with the value every dataset made before the
+# setting existed used: a card without the key means that value (never today's default).
+LEGACY_CONFIG: dict = {"sampler": LEGACY_SAMPLER, "colour_prior": "hsv", "object_parts": [1, 1]}
 
 
 def mesh_files(mesh_dir: str) -> list[str]:
