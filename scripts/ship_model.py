@@ -41,6 +41,7 @@ PAPER = {"pan": 10.46, "tilt": 9.21, "direction": 14.22, "colour": 1.02}   # Tab
 PAPER_TILT = {"L1": (4.92, 5.14, 7.57, 1.04), "L2": (8.51, 5.14, 11.97, 0.90), "L3": (22.36, 18.33, 28.33, 1.00)}
 PAPER_PAN = {"front": (6.87, 5.10, 9.10, 0.98), "right": (6.24, 5.12, 8.80, 0.96),
              "back": (6.35, 5.09, 9.46, 1.03), "left": (6.01, 5.16, 9.03, 0.97)}
+STAGE_WORDS = {2: "Two", 3: "Three", 4: "Four", 5: "Five"}
 GENERATE_FLAGS = ("res", "spp", "target_rmse", "sampler", "colour_prior", "object_parts", "max_depth", "mesh_dir")
 
 
@@ -155,16 +156,42 @@ def train_command(s: dict, data_path: str, epochs: int | None = None, out: str =
     return "relight train " + " ".join(opts)
 
 
-def base_stage(settings: dict) -> dict | None:
-    """The first stage of a fine-tuning run (``settings["init"]``, a model file that
-    ``relight train`` wrote): its settings, best epoch and val loss; ``None`` otherwise."""
-    if not settings.get("init"):
-        return None
-    _, _, info = read_model_file(settings["init"])
-    if "settings" not in info or "epoch" not in info:
-        raise SystemExit(f"{settings['init']}: the --init model has no training record (settings, epoch)")
-    return {"model": settings["init"], "settings": info["settings"], "best_epoch": int(info["epoch"]),
-            "best_val_loss": info.get("val_loss")}
+def _stage(model: str, info: dict) -> dict:
+    """A stage's record from its model file: a run's checkpoint (``epoch``, ``val_loss``)
+    or a model shipped by this script (``best_epoch``, ``best_val_loss``)."""
+    return {"model": model, "settings": info["settings"], "best_epoch": int(info.get("epoch", info.get("best_epoch"))),
+            "best_val_loss": info.get("val_loss", info.get("best_val_loss")),
+            "train_dataset": info.get("train_dataset")}
+
+
+def earlier_stages(settings: dict) -> list[dict]:
+    """The stages before a fine-tuning run (``settings["init"]``, a model file that
+    ``relight train`` wrote), oldest first: each one's settings, best epoch, val loss and
+    training data where known. The chain follows each model's own ``--init``: a model
+    shipped by this script keeps it in its header (``stages``); one shipped before that
+    kept its first stage in the meta file beside it (``base``). ``[]`` for a run from
+    scratch."""
+    path = settings.get("init")
+    if not path:
+        return []
+    _, _, info = read_model_file(path)
+    if "settings" not in info or ("epoch" not in info and "best_epoch" not in info):
+        raise SystemExit(f"{path}: the --init model has no training record (settings, epoch)")
+    stage = _stage(path, info)
+    if info.get("stages"):
+        return list(info["stages"]) + [stage]
+    previous = info["settings"].get("init")
+    if not previous:
+        return [stage]
+    if os.path.isfile(previous):
+        return earlier_stages(info["settings"]) + [stage]
+    meta_file = os.path.splitext(path)[0] + ".json"
+    meta = json.load(open(meta_file)) if os.path.isfile(meta_file) else {}
+    if meta.get("stages"):
+        return list(meta["stages"]) + [stage]
+    if meta.get("base"):
+        return [meta["base"], stage]
+    raise SystemExit(f"{path}: the model it was fine-tuned from ({previous}) is gone and no record of it is kept")
 
 
 def ship(run: str, train_data: str, model_path: str | None = None, models_dir: str = MODELS_DIR) -> dict:
@@ -184,10 +211,10 @@ def ship(run: str, train_data: str, model_path: str | None = None, models_dir: s
                               "records": len(read_manifest(train_data))},
             "settings": info["settings"], "run": run, "kappa_temperature": info.get("kappa_temperature"),
             "kappa_calibration": info.get("kappa_calibration"), "models_dir": models_dir,
-            "base": base_stage(info["settings"])}
+            "stages": earlier_stages(info["settings"])}
     save_model(os.path.join(models_dir, os.path.basename(SHIPPED_MODEL)), model,
                {k: meta[k] for k in ("name", "best_epoch", "best_val_loss", "settings", "train_dataset",
-                                     "kappa_temperature", "kappa_calibration") if meta[k] is not None},
+                                     "kappa_temperature", "kappa_calibration", "stages") if meta[k] not in (None, [])},
                dtype=SHIPPED_DTYPE)
     _copy(os.path.join(run, "log.csv"), os.path.join(models_dir, f"{SHIPPED_NAME}_log.csv"))
     write_json(os.path.join(models_dir, f"{SHIPPED_NAME}.json"), meta)
@@ -218,6 +245,15 @@ def level_rows(tables: dict, group: str, paper: dict) -> str:
     return "\n".join(out)
 
 
+def _fine_tune_why(before: dict, after: dict, default_data: str) -> str:
+    """How a stage follows the one before it (training settings of both)."""
+    head = f"fine-tunes the previous stage's best model (`--init`) at lr {after['lr']:g}"
+    if after.get("data_dir", default_data) != before.get("data_dir", default_data):
+        return f"{head} on other data (`{after.get('data_dir', default_data)}`)"
+    return (f"{head}, a learning-rate drop made by hand where the plateau schedule would wait for "
+            f"{before['plateau_patience'] + 1} epochs without a better val loss")
+
+
 def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_evals: dict | None = None) -> str:
     """Write MODEL_CARD.md into the models folder and return its text; ``prior_evals``:
     ``{prior name: (test set, evaluation folder)}``."""
@@ -235,20 +271,24 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
     w = s["loss_weights"]
     rows = list(csv.DictReader(open(os.path.join(models_dir, f"{SHIPPED_NAME}_log.csv"))))
     unfinished = len(rows) < int(s["epochs"])
-    base = meta.get("base")
-    train_cmd_line = train_command(s, meta["train_dataset"]["path"], len(rows) if unfinished else None,
-                                   init="STAGE1/best.safetensors" if base else None)
-    stage1, stage1_line = "", ""
-    if base:
-        b = base["settings"]
-        stage1_cmd = train_command(b, b.get("data_dir", meta["train_dataset"]["path"]), base["best_epoch"],
-                                   out="STAGE1")
-        loss = "" if base["best_val_loss"] is None else f" {base['best_val_loss']:.4f}"
-        stage1 = (f"- Two stages. Stage 1: `{stage1_cmd}` (lr {b['lr']:g}; its best val loss{loss} is at its "
-                  f"last epoch, {base['best_epoch']}). Stage 2 fine-tunes that model (`--init`) at lr "
-                  f"{s['lr']:g}: a learning-rate drop made by hand, where the plateau schedule would wait "
-                  f"for {b['plateau_patience'] + 1} epochs without a better val loss:\n")
-        stage1_line = stage1_cmd + "\n"
+    stages = meta.get("stages") or ([meta["base"]] if meta.get("base") else [])   # "base": cards before chains
+    td = meta["train_dataset"]
+    final_data = s.get("data_dir", td["path"])
+    train_cmd_line = train_command(s, td["path"], len(rows) if unfinished else None,
+                                   init=f"STAGE{len(stages)}/best.safetensors" if stages else None)
+    stage_text, stage_lines = "", ""
+    chain = [st["settings"] for st in stages] + [s]
+    for k, st in enumerate(stages, 1):
+        b = st["settings"]
+        cmd = train_command(b, b.get("data_dir", final_data), st["best_epoch"], out=f"STAGE{k}",
+                            init=f"STAGE{k - 1}/best.safetensors" if k > 1 else None)
+        loss = "" if st.get("best_val_loss") is None else f"val loss {st['best_val_loss']:.4f}, "
+        head = (f"{STAGE_WORDS.get(len(chain), len(chain))} stages. Stage 1:" if k == 1 else
+                f"Stage {k} {_fine_tune_why(chain[k - 2], b, final_data)}:")
+        stage_text += f"- {head} `{cmd}` (lr {b['lr']:g}; its best {loss}epoch {st['best_epoch']}, passed on).\n"
+        stage_lines += cmd + "\n"
+    if stages:
+        stage_text += f"- Stage {len(chain)} {_fine_tune_why(chain[-2], s, final_data)}:\n"
     stopped = ""
     if unfinished:
         stopped = (f"\n- The run is not finished: this is its state after epoch {len(rows)} of the planned "
@@ -256,10 +296,25 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
                    f"`--epochs {s['epochs']}` the same command continues the run.")
     drops = [f"{float(r['lr']):.0e} after epoch {r['epoch']}" for i, r in enumerate(rows)
              if i and float(r["lr"]) != float(rows[i - 1]["lr"])]
-    td = meta["train_dataset"]
     train_card = {"seed": td["seed"], "config": td["config"], "spp": td.get("spp")}
     train_cfg = dataset_settings(train_card)
-    train_cmd, train_note = generate_command(train_card, td["path"], td["records"])
+    datasets = {}   # every stage's training data, in order of first use: path -> card (as in the model)
+    for st in stages:
+        d = st.get("train_dataset")
+        path = st["settings"].get("data_dir") or (d or td)["path"]
+        if datasets.get(path) is None:
+            datasets[path] = d
+    datasets[td["path"]] = td
+    data_lines = []
+    for path, d in datasets.items():
+        if d is None:   # a stage shipped before models kept their data card
+            data_lines.append((f"{path} (its generate settings are not recorded)", ""))
+            continue
+        data_lines.append(generate_command({"seed": d["seed"], "config": d["config"], "spp": d.get("spp")}, path,
+                                           d["records"]))
+    earlier_data = "".join(f"- Earlier stages: `{cmd}`{(' (' + note + ')') if note else ''}\n"
+                           for cmd, note in data_lines[:-1])
+    train_cmd, train_note = data_lines[-1]
     test_card = read_card(test_data)
     test_cfg = dataset_settings(test_card)
     test_cmd, test_note = generate_command(test_card, test_data, len(read_manifest(test_data)))
@@ -294,8 +349,10 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
         priors = ("\n## Colour error per surface-colour prior\n"
                   "The shipped model on a test set of each prior (`relight generate --colour-prior NAME`, all "
                   "images; degrees):\n\n" + prior_rows(prior_evals) + "\n")
+    lo, hi = train_cfg["object_parts"]
+    parts = "one colour per object" if hi == 1 else f"objects of {lo if lo == hi else f'{lo}-{hi}'} coloured parts"
     data_text = (f"{train_cfg['res']} px, {noise_text(train_card)}, colour prior {train_cfg['colour_prior']}, "
-                 f"depth {train_cfg['max_depth']}")
+                 f"{parts}, depth {train_cfg['max_depth']}")
     card = f"""# Model card: `{SHIPPED_NAME}.safetensors`
 
 The paper's regression network (Sial et al., "Light Direction and Color Estimation from
@@ -316,18 +373,18 @@ dataset made by `relight generate`. It is the default model of `relight predict`
   header and in `{SHIPPED_NAME}.json`; training log `{SHIPPED_NAME}_log.csv`.
 
 ## Training data
-- `{train_cmd}`{(' (' + train_note + ')') if train_note else ''}
+{earlier_data}- `{train_cmd}`{(' (' + train_note + ')') if train_note else ''}
   ({data_text}; SID2 ranges: light r 20-50 m, tilt 30-90 step 5,
   pan step 1, CCT 2500-10000 K |Duv| <= 0.01; camera r 20 m, tilt 10-70; 1-3 objects).
   The dataset's `train` split ({meta['train_images_per_epoch'][-1]} images) trains, its `val` split drives
   the scheduler and the choice of the best epoch. The paper used 45,000 images.
 
 ## Training
-{stage1}- `{train_cmd_line}`
+{stage_text}- `{train_cmd_line}`
 - Adam lr {s['lr']:g}, ReduceLROnPlateau factor 0.1 (patience {s['plateau_patience']}) on the val loss,
   batch {s['batch_size']}, horizontal flips (pan_rel -> 360 - pan_rel), loss
   {w['pan']:g} x MSE(pan pair) + {w['tilt']:g} x MSE(tilt pair) + {w['colour']:g} x mean RGB angular error (radians).
-- {'Stage 2: ' if base else ''}{meta['trained_epochs_total']} epochs in {meta['train_time_s_all_epochs'] / 60:.0f} min on the 2-core CPU; best val
+- {f'Stage {len(stages) + 1}: ' if stages else ''}{meta['trained_epochs_total']} epochs in {meta['train_time_s_all_epochs'] / 60:.0f} min on the 2-core CPU; best val
   loss at epoch {meta['best_epoch']} ({meta['train_time_s_to_best'] / 60:.0f} min). Learning-rate drops: {', '.join(drops) or 'none'}.{stopped}
 
 ## Test results (fresh test set, never used for training)
@@ -356,9 +413,9 @@ Full report of `relight evaluate`:
 
 ## Reproduce
 ```
-{train_cmd}
+{"".join(cmd + chr(10) for cmd, _ in data_lines[:-1])}{train_cmd}
 {test_cmd}
-{stage1_line}{train_cmd_line}
+{stage_lines}{train_cmd_line}
 {calibrate_line}.venv/bin/python scripts/ship_model.py --run RUN --train-data {td['path']} --test-data {test_data}{ship_extra} --notes NOTES.md
 ```
 (`bash scripts/make_sid2.sh` makes the SID2-scale sets and `bash scripts/train_sid2.sh ARCH` runs

@@ -142,7 +142,8 @@ def test_card_of_a_two_stage_run(ship_model, world, tmp_path, monkeypatch, capsy
     capsys.readouterr()
     card = (models / "MODEL_CARD.md").read_text()
     meta = json.load(open(models / "sid2.json"))
-    assert meta["base"]["model"] == str(world / "run" / "best.safetensors") and meta["base"]["best_epoch"] == 1
+    assert [st["model"] for st in meta["stages"]] == [str(world / "run" / "best.safetensors")]
+    assert meta["stages"][0]["best_epoch"] == 1
     reproduce = card.split("## Reproduce")[1]
     stage1 = next(line for line in reproduce.splitlines() if "--out STAGE1" in line)
     stage2_cmd = next(line for line in reproduce.splitlines() if "--init STAGE1/best.safetensors" in line)
@@ -150,3 +151,42 @@ def test_card_of_a_two_stage_run(ship_model, world, tmp_path, monkeypatch, capsy
     assert "--lr 2e-05" in stage2_cmd and "--out RUN" in stage2_cmd
     assert reproduce.index(stage1) < reproduce.index(stage2_cmd)
     assert "Two stages" in card and "Stage 2: 1 epochs" in card
+
+
+def test_card_of_a_three_stage_run_on_other_data(ship_model, world, tmp_path, monkeypatch, capsys):
+    """Fine-tuning a shipped two-stage model on another dataset: the chain comes from the
+    shipped model's own header (its stage-1 file may be gone), the card gives all three
+    commands, each stage --init on the one before, and both datasets' generate commands."""
+    from relight.net.train import TrainConfig, train
+    from relight.net.io import read_model_file
+
+    def ship(run, data, models):
+        monkeypatch.setattr(sys, "argv", ["ship_model.py", "--run", str(run), "--train-data", str(data),
+                                          "--test-data", str(world / "test"), "--eval-out", str(tmp_path / "ev"),
+                                          "--models-dir", str(models)])
+        assert ship_model.main() == 0
+        capsys.readouterr()
+
+    torch.manual_seed(0)
+    train(TrainConfig(data_dir=str(world / "train"), epochs=1, res=RES, batch_size=4, train_split="all",
+                      val_split="all", lr=2e-5, init=str(world / "run" / "best.safetensors")),
+          tmp_path / "stage2", progress=False)
+    ship(tmp_path / "stage2", world / "train", tmp_path / "models2")
+    shipped2 = tmp_path / "models2" / "sid2.safetensors"
+    assert [st["model"] for st in read_model_file(str(shipped2))[2]["stages"]] == [str(world / "run" / "best.safetensors")]
+    train(TrainConfig(data_dir=str(world / "test"), epochs=1, res=RES, batch_size=4, train_split="all",
+                      val_split="all", lr=1e-5, init=str(shipped2)), tmp_path / "stage3", progress=False)
+    ship(tmp_path / "stage3", world / "test", tmp_path / "models3")
+    meta = json.load(open(tmp_path / "models3" / "sid2.json"))
+    assert [st["model"] for st in meta["stages"]] == [str(world / "run" / "best.safetensors"), str(shipped2)]
+    card = (tmp_path / "models3" / "MODEL_CARD.md").read_text()
+    assert "Three stages" in card and "Stage 3: 1 epochs" in card and f"on other data (`{world / 'test'}`)" in card
+    reproduce = card.split("## Reproduce")[1].splitlines()
+    s1, s2, s3 = (next(i for i, line in enumerate(reproduce) if pat in line)
+                  for pat in ("--out STAGE1", "--out STAGE2", "--out RUN"))
+    assert s1 < s2 < s3 and "--init" not in reproduce[s1]
+    assert "--init STAGE1/best.safetensors" in reproduce[s2] and f"--data {world / 'train'} " in reproduce[s2]
+    assert "--init STAGE2/best.safetensors" in reproduce[s3] and f"--data {world / 'test'} " in reproduce[s3]
+    gens = [line for line in reproduce if line.startswith("relight generate")]
+    assert any(f"--out {world / 'train'} " in g for g in gens) and any(f"--out {world / 'test'} " in g for g in gens)
+    assert "- Earlier stages: `relight generate" in card
