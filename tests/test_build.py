@@ -90,7 +90,7 @@ def _naive_scene_dict(mi, spec, folder):
     SceneTemplate.apply or relight.frames: camera and walls by Mitsuba's own look_at, the
     light from the spherical formula, objects as PLY files placed by Mitsuba transforms."""
     import math
-    from relight.scene import build, textures
+    from relight.scene import build, shapes, textures
     T = mi.ScalarTransform4f
     cam, light, room = spec.camera, spec.light, spec.room
 
@@ -132,25 +132,33 @@ def _naive_scene_dict(mi, spec, folder):
             "bsdf": {"type": "diffuse", "reflectance": bitmap(room.wall_textures[k])}}
     for i, obj in enumerate(spec.objects):
         mesh = build.object_mesh(obj)   # object space: the shape itself, not its placement
-        path = str(folder / f"obj{i}.ply")
-        _write_ply(path, mesh.vertices, mesh.normals, mesh.faces)
-        scene[f"obj{i}"] = {
-            "type": "ply", "filename": path, "face_normals": False,
-            "to_world": T().translate([obj.position_m[0], obj.position_m[1], 0.0])
-            @ T().rotate(axis=[0, 0, 1], angle=obj.yaw_deg) @ T().scale(obj.size_m),
-            "bsdf": {"type": "roughdiffuse", "roughness": obj.roughness,
-                     "reflectance": {"type": "rgb", "value": list(obj.reflectance)}}}
+        colours = obj.colours
+        # a multi-coloured object: one PLY and one plain rgb BSDF per part (the template
+        # instead reads a per-face albedo attribute of the whole mesh)
+        labels = shapes.part_labels(mesh, len(colours)) if len(colours) > 1 else np.zeros(len(mesh.faces), int)
+        for j, colour in enumerate(colours):
+            path = str(folder / f"obj{i}_{j}.ply")
+            _write_ply(path, mesh.vertices, mesh.normals, mesh.faces[labels == j])
+            scene[f"obj{i}_{j}"] = {
+                "type": "ply", "filename": path, "face_normals": False,
+                "to_world": T().translate([obj.position_m[0], obj.position_m[1], 0.0])
+                @ T().rotate(axis=[0, 0, 1], angle=obj.yaw_deg) @ T().scale(obj.size_m),
+                "bsdf": {"type": "roughdiffuse", "roughness": obj.roughness,
+                         "reflectance": {"type": "rgb", "value": list(colour)}}}
     return scene
 
 
-def test_template_equals_scene_built_from_the_spec_directly(mi, tmp_path):
+@pytest.mark.parametrize("parts", [(1, 1), (4, 12)])
+def test_template_equals_scene_built_from_the_spec_directly(mi, tmp_path, parts):
     # the template path (one loaded scene, spec written by apply, after another spec
-    # was written into it) against a scene dict made straight from the spec
+    # was written into it) against a scene dict made straight from the spec; with
+    # multi-coloured objects, each part its own mesh and BSDF
     from relight.scene import bsdf, noise
     from relight.scene.sampling import GeneratorConfig, sample_scene
     bsdf.register()
-    spec = sample_scene(GeneratorConfig(res=32, spp=4), 7, 3)
-    _render(sample_scene(GeneratorConfig(res=32, spp=4), 7, 4))   # disturb the template first
+    spec = sample_scene(GeneratorConfig(res=32, spp=4, object_parts=parts), 7, 3)
+    assert all(len(o.colours) >= parts[0] for o in spec.objects)
+    _render(sample_scene(GeneratorConfig(res=32, spp=4, object_parts=(1, 32)), 7, 4))   # disturb the template first
     a = _render(spec)
     naive = mi.load_dict(_naive_scene_dict(mi, spec, tmp_path))
     spp = noise.exact_spp(spec.render.sampler, spec.render.spp)
