@@ -4,6 +4,8 @@
 # kill or a new session. Default root /root/relight-data (outside the repository).
 #   test:  2,500 images, seed 5 (never used for training), evaluate with --split all
 #   train: 50,000 images, seed 6, split 90/10 -> ~45,000 train + ~5,000 val
+#   per-prior tests: 1,000 images each with the munsell (seed 7) and mixture (seed 8) colour
+#          priors, for the model card's colour error on each prior (hsv: the main test set)
 # Otherwise the generator's defaults (128 px, multijitter, 16 spp, colour prior hsv).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -13,3 +15,5 @@ RELIGHT=${RELIGHT:-.venv/bin/relight}
 "$RELIGHT" generate --count 2500 --out "$ROOT/sid2p-test" --seed 5 --object-parts "$PARTS"
 "$RELIGHT" generate --count 50000 --out "$ROOT/sid2p-train" --seed 6 --object-parts "$PARTS" \
     --config scenes/configs/sid2_train.json
+"$RELIGHT" generate --count 1000 --out "$ROOT/sid2p-test-munsell" --seed 7 --object-parts "$PARTS" --colour-prior munsell
+"$RELIGHT" generate --count 1000 --out "$ROOT/sid2p-test-mixture" --seed 8 --object-parts "$PARTS" --colour-prior mixture
