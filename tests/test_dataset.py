@@ -130,18 +130,19 @@ def test_card_written_before_a_setting_existed_still_resumes(tmp_path, mi):
     import dataclasses
     import json
     from relight.dataset import DatasetError
-    generate(tmp_path, 1, seed=4, cfg=CFG, progress=False)
+    one = dataclasses.replace(CFG, object_parts=(1, 1))   # the value before the setting existed
+    generate(tmp_path, 1, seed=4, cfg=one, progress=False)
     card = json.loads((tmp_path / "dataset.json").read_text())
     del card["config"]["object_parts"]
     (tmp_path / "dataset.json").write_text(json.dumps(card))
-    assert generate(tmp_path, 2, seed=4, cfg=CFG, progress=False).written == 1
+    assert generate(tmp_path, 2, seed=4, cfg=one, progress=False).written == 1
     with pytest.raises(DatasetError, match="other settings"):
         generate(tmp_path, 3, seed=4, cfg=dataclasses.replace(CFG, object_parts=(2, 2)), progress=False)
     assert CFG.sampler != "independent"
     del card["config"]["sampler"]
     (tmp_path / "dataset.json").write_text(json.dumps(card))
     with pytest.raises(DatasetError, match="other settings"):
-        generate(tmp_path, 3, seed=4, cfg=CFG, progress=False)
+        generate(tmp_path, 3, seed=4, cfg=one, progress=False)
 
 
 def test_split_is_deterministic_and_balanced():

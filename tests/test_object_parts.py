@@ -59,7 +59,7 @@ def _obj(**kw):
 
 
 def test_scene_file_field_round_trip_and_validation(tmp_path):
-    plain = sample_scene(GeneratorConfig(), 3, 17)
+    plain = sample_scene(GeneratorConfig(object_parts=(1, 1)), 3, 17)
     assert "part_reflectances" not in plain.to_json()     # one-colour files unchanged
     parted = sample_scene(GeneratorConfig(object_parts=(3, 3)), 3, 17)
     assert all(len(o.part_reflectances) == 3 and o.reflectance == o.part_reflectances[0]
@@ -74,7 +74,7 @@ def test_scene_file_field_round_trip_and_validation(tmp_path):
 
 
 def test_generator_parts_change_only_the_objects():
-    cfg1, cfg4 = GeneratorConfig(res=32, spp=4), GeneratorConfig(res=32, spp=4, object_parts=(2, 6))
+    cfg1, cfg4 = GeneratorConfig(res=32, spp=4, object_parts=(1, 1)), GeneratorConfig(res=32, spp=4, object_parts=(2, 6))
     counts = []
     for i in range(20):
         a, b = sample_scene(cfg1, 5, i), sample_scene(cfg4, 5, i)
