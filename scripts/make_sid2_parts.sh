@@ -17,3 +17,4 @@ RELIGHT=${RELIGHT:-.venv/bin/relight}
     --config scenes/configs/sid2_train.json
 "$RELIGHT" generate --count 1000 --out "$ROOT/sid2p-test-munsell" --seed 7 --object-parts "$PARTS" --colour-prior munsell
 "$RELIGHT" generate --count 1000 --out "$ROOT/sid2p-test-mixture" --seed 8 --object-parts "$PARTS" --colour-prior mixture
+
