@@ -205,8 +205,12 @@ def _write_card(out: str, seed: int, cfg: GeneratorConfig, count: int, n_records
         same = {k: old.get(k) for k in settings}
         if isinstance(same["config"], dict):   # a setting added later reads as its old value
             same["config"] = {**LEGACY_CONFIG, **same["config"]}
-        if json.loads(json.dumps(same)) != json.loads(json.dumps(settings)):
-            raise DatasetError(f"{out} holds a dataset made with other settings (seed or config); "
+        there, here = json.loads(json.dumps(same)), json.loads(json.dumps(settings))
+        if there != here:
+            diff = [f"{k} {there.get(k)} there, {here[k]} here" for k in ("format", "seed") if there.get(k) != here[k]]
+            old_cfg = there["config"] if isinstance(there["config"], dict) else {}
+            diff += [f"{k} {old_cfg.get(k)} there, {v} here" for k, v in here["config"].items() if old_cfg.get(k) != v]
+            raise DatasetError(f"{out} holds a dataset made with other settings ({'; '.join(diff[:3]) or 'config'}); "
                                "use another --out or the same settings to resume")
         count = max(count, int(old.get("count", 0)))
     card = {**settings, "count": int(count), "spp": cfg.render_spp,

@@ -136,12 +136,12 @@ def test_card_written_before_a_setting_existed_still_resumes(tmp_path, mi):
     del card["config"]["object_parts"]
     (tmp_path / "dataset.json").write_text(json.dumps(card))
     assert generate(tmp_path, 2, seed=4, cfg=one, progress=False).written == 1
-    with pytest.raises(DatasetError, match="other settings"):
+    with pytest.raises(DatasetError, match=r"other settings \(object_parts \[1, 1\] there, \[2, 2\] here\)"):
         generate(tmp_path, 3, seed=4, cfg=dataclasses.replace(CFG, object_parts=(2, 2)), progress=False)
     assert CFG.sampler != "independent"
     del card["config"]["sampler"]
     (tmp_path / "dataset.json").write_text(json.dumps(card))
-    with pytest.raises(DatasetError, match="other settings"):
+    with pytest.raises(DatasetError, match=f"other settings \\(sampler independent there, {CFG.sampler} here\\)"):
         generate(tmp_path, 3, seed=4, cfg=one, progress=False)
 
 
