@@ -197,6 +197,20 @@ def read_card(dataset_dir: str | os.PathLike) -> dict:
         raise DatasetError(f"cannot read dataset card {path}: {exc}") from None
 
 
+def check_same_settings(out: str, there: dict, here: dict) -> None:
+    """Refuse to add to the dataset in ``out`` (card settings ``there``) with other
+    settings (``here``, the same keys, ``config`` a dict): :class:`DatasetError` naming
+    the first settings that differ."""
+    there, here = json.loads(json.dumps(there)), json.loads(json.dumps(here))
+    if there == here:
+        return
+    diff = [f"{k} {there.get(k)} there, {v} here" for k, v in here.items() if k != "config" and there.get(k) != v]
+    old_cfg = there.get("config") if isinstance(there.get("config"), dict) else {}
+    diff += [f"{k} {old_cfg.get(k)} there, {v} here" for k, v in here["config"].items() if old_cfg.get(k) != v]
+    raise DatasetError(f"{out} holds a dataset made with other settings ({'; '.join(diff[:3]) or 'config'}); "
+                       "use another --out or the same settings to resume")
+
+
 def _write_card(out: str, seed: int, cfg: GeneratorConfig, count: int, n_records: int) -> None:
     card_path = os.path.join(out, CARD)
     settings = {"format": DATASET_FORMAT, "seed": int(seed), "config": cfg.to_dict()}
@@ -205,13 +219,7 @@ def _write_card(out: str, seed: int, cfg: GeneratorConfig, count: int, n_records
         same = {k: old.get(k) for k in settings}
         if isinstance(same["config"], dict):   # a setting added later reads as its old value
             same["config"] = {**LEGACY_CONFIG, **same["config"]}
-        there, here = json.loads(json.dumps(same)), json.loads(json.dumps(settings))
-        if there != here:
-            diff = [f"{k} {there.get(k)} there, {here[k]} here" for k in ("format", "seed") if there.get(k) != here[k]]
-            old_cfg = there["config"] if isinstance(there["config"], dict) else {}
-            diff += [f"{k} {old_cfg.get(k)} there, {v} here" for k, v in here["config"].items() if old_cfg.get(k) != v]
-            raise DatasetError(f"{out} holds a dataset made with other settings ({'; '.join(diff[:3]) or 'config'}); "
-                               "use another --out or the same settings to resume")
+        check_same_settings(out, same, settings)
         count = max(count, int(old.get("count", 0)))
     card = {**settings, "count": int(count), "spp": cfg.render_spp,
             "description": "SID2-style synthetic dataset rendered with Mitsuba 3 by relight "

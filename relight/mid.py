@@ -160,15 +160,13 @@ def _unit(v) -> list:
 
 
 def _write_card(out: str, seed: int, cfg: MidConfig, scenes: int, n_records: int) -> None:
-    from relight.dataset import CARD, read_card
+    from relight.dataset import CARD, check_same_settings, read_card
     from relight.fileio import write_json
     settings = {"format": MID_FORMAT, "preset": "mid", "seed": int(seed), "config": cfg.to_dict()}
     path = os.path.join(out, CARD)
     if os.path.isfile(path) and n_records:
         old = read_card(out)
-        if json.loads(json.dumps({k: old.get(k) for k in settings})) != json.loads(json.dumps(settings)):
-            raise DatasetError(f"{out} holds a dataset made with other settings (seed or config); "
-                               "use another --out or the same settings to resume")
+        check_same_settings(out, {k: old.get(k) for k in settings}, settings)
         scenes = max(scenes, int(old.get("scenes", 0)))
     write_json(path, {**settings, "scenes": int(scenes),
                       "flash_directions": [list(d) for d in scene_mid.FLASH_DIRECTIONS],

@@ -137,3 +137,16 @@ def test_second_writer_is_refused(tmp_path):
         assert _snapshot(out) == before
     finally:
         lock.release()
+
+
+def test_other_settings_are_named_when_resume_is_refused(tmp_path):
+    import pytest
+
+    from relight.errors import DatasetError
+    from relight.mid import MidConfig, _write_card
+    _write_card(str(tmp_path), 5, MidConfig(), 2, 0)
+    _write_card(str(tmp_path), 5, MidConfig(), 2, 1)          # same settings: fine
+    card = (tmp_path / "dataset.json").read_bytes()
+    with pytest.raises(DatasetError, match=r"other settings \(seed 5 there, 6 here\)"):
+        _write_card(str(tmp_path), 6, MidConfig(), 2, 1)
+    assert (tmp_path / "dataset.json").read_bytes() == card
