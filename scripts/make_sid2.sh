@@ -5,12 +5,13 @@
 #   test:  2,500 images, seed 2 (never used for training), evaluate with --split all
 #   per-prior tests: 1,000 images each with the munsell (seed 3) and mixture (seed 4) colour
 #          priors, for the model card's colour error on each prior (hsv: the main test set)
-# Generator defaults: 128 px, multijitter, 2% relative RMSE target (16 spp), colour prior hsv.
+# Generator defaults: 128 px, multijitter, 2% relative RMSE target (16 spp), colour prior hsv;
+# one-colour objects (--object-parts 1, the default before 1-32; scripts/make_sid2_parts.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=${1:-/root/relight-data}
 RELIGHT=${RELIGHT:-.venv/bin/relight}
-"$RELIGHT" generate --count 2500 --out "$ROOT/sid2-test" --seed 2
-"$RELIGHT" generate --count 50000 --out "$ROOT/sid2-train" --seed 1 --config scenes/configs/sid2_train.json
-"$RELIGHT" generate --count 1000 --out "$ROOT/sid2-test-munsell" --seed 3 --colour-prior munsell
-"$RELIGHT" generate --count 1000 --out "$ROOT/sid2-test-mixture" --seed 4 --colour-prior mixture
+"$RELIGHT" generate --count 2500 --out "$ROOT/sid2-test" --seed 2 --object-parts 1
+"$RELIGHT" generate --count 50000 --out "$ROOT/sid2-train" --seed 1 --object-parts 1 --config scenes/configs/sid2_train.json
+"$RELIGHT" generate --count 1000 --out "$ROOT/sid2-test-munsell" --seed 3 --object-parts 1 --colour-prior munsell
+"$RELIGHT" generate --count 1000 --out "$ROOT/sid2-test-mixture" --seed 4 --object-parts 1 --colour-prior mixture

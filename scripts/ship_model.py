@@ -67,6 +67,15 @@ def noise_text(card: dict) -> str:
     return f"sampler {cfg['sampler']}, {cfg['spp_used']} spp {how}"
 
 
+def settings_text(card: dict) -> str:
+    """The generator settings a card's images differ by, e.g. ``128 px, sampler ..., colour
+    prior hsv, objects of 1-32 coloured parts``."""
+    cfg = dataset_settings(card)
+    lo, hi = cfg["object_parts"]
+    parts = "one colour per object" if hi == 1 else f"objects of {lo if lo == hi else f'{lo}-{hi}'} coloured parts"
+    return f"{cfg['res']} px, {noise_text(card)}, colour prior {cfg['colour_prior']}, {parts}"
+
+
 def generate_command(card: dict, path: str, count: int) -> tuple[str, str]:
     """``(command, note)``: the ``relight generate`` command that makes a dataset with the
     card's settings (explicit options for the noise, sampler, colour prior and object parts; settings
@@ -316,7 +325,6 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
                            for cmd, note in data_lines[:-1])
     train_cmd, train_note = data_lines[-1]
     test_card = read_card(test_data)
-    test_cfg = dataset_settings(test_card)
     test_cmd, test_note = generate_command(test_card, test_data, len(read_manifest(test_data)))
     table1 = "\n".join(f"| {m.capitalize()} | {PAPER[m]:.2f} | {overall[m]['mean']:.2f} | "
                        f"{overall[m]['median']:.2f} |" for m in METRICS)
@@ -349,10 +357,7 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
         priors = ("\n## Colour error per surface-colour prior\n"
                   "The shipped model on a test set of each prior (`relight generate --colour-prior NAME`, all "
                   "images; degrees):\n\n" + prior_rows(prior_evals) + "\n")
-    lo, hi = train_cfg["object_parts"]
-    parts = "one colour per object" if hi == 1 else f"objects of {lo if lo == hi else f'{lo}-{hi}'} coloured parts"
-    data_text = (f"{train_cfg['res']} px, {noise_text(train_card)}, colour prior {train_cfg['colour_prior']}, "
-                 f"{parts}, depth {train_cfg['max_depth']}")
+    data_text = f"{settings_text(train_card)}, depth {train_cfg['max_depth']}"
     card = f"""# Model card: `{SHIPPED_NAME}.safetensors`
 
 The paper's regression network (Sial et al., "Light Direction and Color Estimation from
@@ -389,7 +394,7 @@ dataset made by `relight generate`. It is the default model of `relight predict`
 
 ## Test results (fresh test set, never used for training)
 `{test_cmd}`{(' (' + test_note + ')') if test_note else ''}
-({test_cfg['res']} px, {noise_text(test_card)}, colour prior {test_cfg['colour_prior']}; another seed),
+({settings_text(test_card)}; another seed),
 all {ev['n']} images, errors in degrees:
 
 | Error | Paper SID2 (Table 1, mean) | This model, mean | This model, median |
@@ -418,8 +423,9 @@ Full report of `relight evaluate`:
 {stage_lines}{train_cmd_line}
 {calibrate_line}.venv/bin/python scripts/ship_model.py --run RUN --train-data {td['path']} --test-data {test_data}{ship_extra} --notes NOTES.md
 ```
-(`bash scripts/make_sid2.sh` makes the SID2-scale sets and `bash scripts/train_sid2.sh ARCH` runs
-the training command on them, resumably.)
+(`bash scripts/make_sid2.sh` makes the SID2-scale sets of one-colour objects and `bash
+scripts/train_sid2.sh ARCH` trains on them; `bash scripts/make_sid2_parts.sh` makes those of
+multi-coloured objects and `bash scripts/train_sid2p.sh` fine-tunes on them; all resumably.)
 `relight evaluate --data {test_data} --split all --out REPORT` with the shipped model
 reproduces the tables above exactly (inference is deterministic). Training on a CPU is
 repeatable in its settings, not bit for bit (thread scheduling).

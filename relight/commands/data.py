@@ -28,7 +28,7 @@ def add_commands(sub) -> None:
                    help="surface-colour prior of textures and objects (default hsv; see README)")
     g.add_argument("--object-parts", type=at.object_parts, default=None, metavar="N|LO-HI",
                    help="independently coloured parts per object, N or a range drawn per object "
-                        "(the paper colours each mesh part; default 1; see README)")
+                        "(the paper colours each mesh part; default 1-32; see README)")
     g.add_argument("--max-depth", type=at.max_depth, default=None, help="path depth (default 4)")
     g.add_argument("--workers", type=at.workers, default=1, help="parallel render processes (default 1)")
     g.add_argument("--scheduler", type=at.scheduler, default=None,

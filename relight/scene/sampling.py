@@ -60,7 +60,7 @@ class GeneratorConfig:
     light_pan_step_deg: float = 1.0
     light_strength: tuple[float, float] = (2.5, 4.0)   # irradiance at the centre, W/m^2
     n_objects: tuple[int, int] = (1, 3)
-    object_parts: tuple[int, int] = (1, 1)             # independently coloured parts per object
+    object_parts: tuple[int, int] = (1, 32)            # independently coloured parts per object (1, 1 before)
     object_size_m: tuple[float, float] = (0.8, 2.0)   # max horizontal radius after scaling
     placement_radius_m: float = 3.5                    # object centres within this disc
     object_gap_m: float = 0.1                          # minimum gap between bounding circles
