@@ -15,9 +15,10 @@ something known. Two measurements:
 2. **The Bayes floor**: the error of the ideal observer (the posterior mean over the
    generator's light prior, in closed form for uniform-box albedos) given the colours
    of N surfaces: how well *any* estimator can do from N surfaces' colours.
-3. **By object count** (``--eval DIR --data DIR``): a model's colour error on a test set
-   split by the number of objects in each scene (from ``relight evaluate``'s
-   ``per_image.csv`` and the dataset's manifest).
+3. **By object count and by object parts** (``--eval DIR --data DIR``): a model's colour
+   error on a test set split by the number of objects in each scene and by the number of
+   independently coloured object parts (from ``relight evaluate``'s ``per_image.csv``,
+   the dataset's manifest and scene files).
 
     .venv/bin/python benchmarks/bench_colour_floor.py [--draws 2000]
         [--eval /root/relight-data/sid2-test-eval --data /root/relight-data/sid2-test]
@@ -35,7 +36,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from relight.dataset import read_manifest  # noqa: E402
 from relight.metrics import colour_error_deg  # noqa: E402
-from relight.scene.albedo import (box_direction_logpdf, munsell_albedos, object_reflectance,  # noqa: E402
+from relight.scene.albedo import (ideal_observer_errors, munsell_albedos, object_reflectance,  # noqa: E402
                                   texture_colours)
 
 COUNTS = (1, 3, 5, 10, 30, 100, 300)
@@ -72,32 +73,42 @@ def ideal_observer_table(draws: int, seed: int = 0, n_candidates: int = 4000) ->
     from that prior. No estimator that sees only the surfaces' colours does better on
     average: the network's colour error cannot go below this for N visible surfaces."""
     from relight.colour import sample_light_colour
-    from relight.scene.albedo import OBJECT_RANGE
     rng = np.random.default_rng(seed)
     candidates = np.array([sample_light_colour(rng)[2] for _ in range(n_candidates)])
     out = []
     for n in COUNTS:
-        errs = []
-        for _ in range(draws):
-            light = sample_light_colour(rng)[2]
-            c = rng.uniform(*OBJECT_RANGE, (n, 3)) * light
-            u = c / np.linalg.norm(c, axis=1, keepdims=True)
-            logp = box_direction_logpdf(u, candidates, *OBJECT_RANGE).sum(0)
-            w = np.exp(logp - logp.max())
-            est = (w[:, None] * candidates).sum(0)
-            errs.append(float(colour_error_deg(est, light)))
+        errs = ideal_observer_errors(n, draws, candidates, rng)
         out.append((float(np.mean(errs)), float(np.median(errs))))
     return out
 
 
-def by_object_count(eval_dir: str, data_dir: str) -> dict[int, tuple[int, float, float]]:
-    """Objects in the scene -> (images, colour error mean, median) of an evaluation."""
-    n_objects = {r["id"]: int(r.get("n_objects", -1)) for r in read_manifest(data_dir)}
-    errors: dict[int, list[float]] = {}
+PART_BINS = ((1, 3), (4, 15), (16, 31), (32, 63), (64, 96))   # object parts in a scene (up to 3 x 32)
+
+
+def _colour_error_by(eval_dir: str, group_of: dict[str, object]) -> dict:
+    """Group -> (images, colour error mean, median) of an evaluation, each image in the
+    group ``group_of[its id]`` (-1 when unknown)."""
+    errors: dict = {}
     with open(os.path.join(eval_dir, "per_image.csv")) as f:
         for row in csv.DictReader(f):
-            errors.setdefault(n_objects.get(row["id"], -1), []).append(float(row["colour_err_deg"]))
+            errors.setdefault(group_of.get(row["id"], -1), []).append(float(row["colour_err_deg"]))
     return {k: (len(v), float(np.mean(v)), float(np.median(v))) for k, v in sorted(errors.items())}
+
+
+def by_object_count(eval_dir: str, data_dir: str) -> dict[int, tuple[int, float, float]]:
+    """Objects in the scene -> (images, colour error mean, median) of an evaluation."""
+    return _colour_error_by(eval_dir, {r["id"]: int(r.get("n_objects", -1)) for r in read_manifest(data_dir)})
+
+
+def by_object_parts(eval_dir: str, data_dir: str) -> dict[tuple[int, int], tuple[int, float, float]]:
+    """Independently coloured object parts in the scene, binned by :data:`PART_BINS`
+    (from its scene file) -> (images, colour error mean, median) of an evaluation."""
+    from relight.scene.spec import load_scene
+    group = {}
+    for r in read_manifest(data_dir):
+        n = sum(len(o.colours) for o in load_scene(os.path.join(data_dir, "scenes", f"{r['id']}.json")).objects)
+        group[r["id"]] = next((b for b in PART_BINS if b[0] <= n <= b[1]), (n, n))
+    return _colour_error_by(eval_dir, group)
 
 
 def main() -> int:
@@ -124,6 +135,11 @@ def main() -> int:
         print("|---:|---:|---:|---:|")
         for k, (n, mean, median) in by_object_count(args.eval, args.data).items():
             print(f"| {k} | {n} | {mean:.2f} | {median:.2f} |")
+        print(f"\nColour error by coloured object parts in the scene ({args.eval}):\n")
+        print("| parts | images | colour mean | colour median |")
+        print("|---:|---:|---:|---:|")
+        for (lo, hi), (n, mean, median) in by_object_parts(args.eval, args.data).items():
+            print(f"| {lo}-{hi} | {n} | {mean:.2f} | {median:.2f} |")
     return 0
 
 

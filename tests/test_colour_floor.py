@@ -34,20 +34,37 @@ def test_box_direction_density_matches_monte_carlo():
 
 def test_bayes_floor_falls_with_more_surfaces():
     from relight.colour import sample_light_colour
-    from relight.metrics import colour_error_deg
+    from relight.scene.albedo import ideal_observer_errors
     rng = np.random.default_rng(1)
     cands = np.array([sample_light_colour(rng)[2] for _ in range(1500)])
-    lo, hi = OBJECT_RANGE
-
-    def floor(n, draws=60):
-        errs = []
-        for _ in range(draws):
-            light = sample_light_colour(rng)[2]
-            c = rng.uniform(lo, hi, (n, 3)) * light
-            logp = box_direction_logpdf(c / np.linalg.norm(c, axis=1, keepdims=True), cands, lo, hi).sum(0)
-            w = np.exp(logp - logp.max())
-            errs.append(float(colour_error_deg((w[:, None] * cands).sum(0), light)))
-        return np.mean(errs)
-    few, many = floor(2), floor(60)
+    few, many = (ideal_observer_errors(n, 60, cands, rng).mean() for n in (2, 60))
     # README table: 1 surface 8.35, 3 surfaces 5.26, 30 surfaces 2.26, 100 surfaces 1.28
     assert 3.5 < few < 9.0 and many < 2.5 and many < 0.5 * few, (few, many)
+
+
+def test_colour_error_by_object_parts(mi, tmp_path):
+    """bench_colour_floor's breakdown by the coloured parts in each scene (its scene
+    file) against the parts counted here, on an evaluation written by hand."""
+    import importlib.util
+    import os
+
+    from relight.dataset import generate, read_manifest
+    from relight.scene.sampling import GeneratorConfig
+    from relight.scene.spec import load_scene
+    spec = importlib.util.spec_from_file_location(
+        "bench_colour_floor", os.path.join(os.path.dirname(__file__), "..", "benchmarks", "bench_colour_floor.py"))
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    data = tmp_path / "data"
+    generate(data, 6, seed=3, cfg=GeneratorConfig(res=16, spp=2, object_parts=(2, 5)), progress=False)
+    ids = [r["id"] for r in read_manifest(data)]
+    err = {i: float(k + 1) for k, i in enumerate(ids)}
+    (tmp_path / "ev").mkdir()
+    (tmp_path / "ev" / "per_image.csv").write_text("id,colour_err_deg\n" + "".join(f"{i},{e}\n" for i, e in err.items()))
+    parts = {i: sum(len(o.colours) for o in load_scene(data / "scenes" / f"{i}.json").objects) for i in ids}
+    assert all(2 <= parts[i] <= 15 for i in ids)
+    want = {}
+    for i in ids:
+        want.setdefault((1, 3) if parts[i] <= 3 else (4, 15), []).append(err[i])
+    got = bench.by_object_parts(str(tmp_path / "ev"), str(data))
+    assert got == {b: (len(v), float(np.mean(v)), float(np.median(v))) for b, v in sorted(want.items())}

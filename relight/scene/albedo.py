@@ -117,6 +117,26 @@ def box_direction_logpdf(u: np.ndarray, lights: np.ndarray, lo: float, hi: float
     return np.log(vol + 1e-30) - np.log(lights.prod(-1))[None, :]
 
 
+def ideal_observer_errors(n_surfaces: int, draws: int, candidates: np.ndarray,
+                          rng: np.random.Generator) -> np.ndarray:
+    """Colour error (degrees) of the ideal observer in ``draws`` scenes of ``n_surfaces``
+    surfaces: each scene draws a light from the generator's prior and ``hsv`` object
+    albedos (uniform in :data:`OBJECT_RANGE` per channel); the estimate is the posterior
+    mean over ``candidates`` (lights drawn from the same prior) under
+    :func:`box_direction_logpdf`. Its mean is the Bayes floor for N visible surfaces."""
+    from relight.colour import sample_light_colour
+    from relight.metrics import colour_error_deg
+    lo, hi = OBJECT_RANGE
+    errs = np.empty(draws)
+    for i in range(draws):
+        light = sample_light_colour(rng)[2]
+        c = rng.uniform(lo, hi, (n_surfaces, 3)) * light
+        logp = box_direction_logpdf(c / np.linalg.norm(c, axis=1, keepdims=True), candidates, lo, hi).sum(0)
+        w = np.exp(logp - logp.max())
+        errs[i] = colour_error_deg((w[:, None] * candidates).sum(0), light)
+    return errs
+
+
 def scene_prior(rng: np.random.Generator, prior: str) -> str:
     """The concrete prior of one scene (``mixture`` draws one; others draw nothing)."""
     if prior == "mixture":
