@@ -719,7 +719,7 @@ def _sweep():
 def test_bad_number_is_one_line(verb, opt, value, world, tmp_path, capfd):
     base = BASE[verb]
     argv = (["--threads", value] + base) if opt == "--threads" and verb == "render" else base + [opt, value]
-    refused_unchanged(argv, world, tmp_path, capfd)
+    refused_unchanged(argv, world, tmp_path, capfd, contains=opt)   # the message names the option
     assert os.listdir(tmp_path) == []
 
 

@@ -70,13 +70,13 @@ def int_in(lo: int, hi: int, what: str = "an integer"):
     return parse
 
 
-def float_in(lo: float, hi: float, what: str = "a number", open_lo: bool = False):
-    """A type accepting finite numbers in ``[lo, hi]`` (``(lo, hi]`` with ``open_lo``)."""
+def float_in(lo: float, hi: float, what: str = "a number", open_lo: bool = False, open_hi: bool = False):
+    """A type accepting finite numbers in ``[lo, hi]`` (an open end with ``open_lo`` / ``open_hi``)."""
     def parse(text: str) -> float:
         v = finite_float(text)
-        if not (lo < v if open_lo else lo <= v) or v > hi:
-            bracket = "(" if open_lo else "["
-            raise argparse.ArgumentTypeError(f"expected {what} in {bracket}{lo:g}, {hi:g}], got {text!r}")
+        if not (lo < v if open_lo else lo <= v) or not (v < hi if open_hi else v <= hi):
+            left, right = "(" if open_lo else "[", ")" if open_hi else "]"
+            raise argparse.ArgumentTypeError(f"expected {what} in {left}{lo:g}, {hi:g}{right}, got {text!r}")
         return v
     parse.__name__ = what.replace(" ", "_")
     return parse
@@ -129,6 +129,7 @@ minutes = float_in(0.0, 1e6, "a time in minutes")
 relative_rmse = float_in(0.0, 1.0, "a relative RMSE", open_lo=True)
 light_pan = float_in(-360.0, 360.0, "a light pan in degrees")
 light_tilt = float_in(-90.0, 90.0, "a light tilt in degrees")
+field_of_view = float_in(0.0, 180.0, "a field of view in degrees", open_lo=True, open_hi=True)
 
 
 def object_parts(text: str) -> tuple[int, int]:

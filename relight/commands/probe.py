@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import os
 
-from relight.commands.argtypes import camera_tilt, positive_float
+from relight.commands.argtypes import camera_tilt, field_of_view, positive_float
 
 
 def add_commands(sub) -> None:
@@ -22,7 +22,7 @@ def add_commands(sub) -> None:
     p.add_argument("--diffuse-circle", type=circle, help="CX,CY,R: the diffuse sphere's outline in pixels")
     p.add_argument("--diffuse-mask", help="mask image, white where the diffuse sphere is")
     proj = p.add_mutually_exclusive_group()
-    proj.add_argument("--fov", type=positive_float, help="perspective camera: horizontal field of view "
+    proj.add_argument("--fov", type=field_of_view, help="perspective camera: horizontal field of view "
                       "(across the image width) in degrees")
     proj.add_argument("--focal-px", type=positive_float, help="perspective camera: focal length in pixels")
     proj.add_argument("--orthographic", action="store_true",
