@@ -33,7 +33,8 @@ sys.path.insert(0, REPO)
 from relight.dataset import read_card, read_manifest  # noqa: E402
 from relight.fileio import atomic_write, write_json, write_text  # noqa: E402
 from relight.metrics import METRICS, format_pan_where_defined  # noqa: E402
-from relight.net.io import MODELS_DIR, SHIPPED_MODEL, SHIPPED_NAME, read_model_file, save_model  # noqa: E402
+from relight.net.io import (MODELS_DIR, SHIPPED_MODEL, SHIPPED_NAME, read_model_file,  # noqa: E402
+                            read_model_header, save_model)
 from relight.net.model import LightNet, PaperEncoder, count_parameters, flops_per_image  # noqa: E402
 
 SHIPPED_DTYPE = torch.float16   # the package's file at half size; it is evaluated as stored
@@ -183,7 +184,7 @@ def earlier_stages(settings: dict) -> list[dict]:
     path = settings.get("init")
     if not path:
         return []
-    _, _, info = read_model_file(path)
+    _, info = read_model_header(path)
     if "settings" not in info or ("epoch" not in info and "best_epoch" not in info):
         raise SystemExit(f"{path}: the --init model has no training record (settings, epoch)")
     stage = _stage(path, info)

@@ -5,6 +5,7 @@ import dataclasses
 import json
 import math
 import os
+import shutil
 
 import numpy as np
 import pytest
@@ -179,6 +180,23 @@ def test_cli_wrong_model_file_exit_2(tiny, tmp_path, capsys, content):
     assert "bad.safetensors" in _one_line_error(capsys)
     assert main(["evaluate", "--model", str(bad), "--data", tiny, "--out", str(tmp_path / "r")]) == 2
     _one_line_error(capsys)
+
+
+def test_model_header_agrees_with_the_file_and_refuses_the_same(model_file, tmp_path):
+    from safetensors.torch import save_file
+    from relight.net.io import read_model_file, read_model_header
+    config, state, info = read_model_file(model_file)
+    assert state and read_model_header(model_file) == (config, info)
+    run = tmp_path / "run"
+    run.mkdir()
+    shutil.copyfile(model_file, run / "best.safetensors")
+    assert read_model_header(run) == (config, info)   # a run folder means its best weights
+    bad = tmp_path / "bad.safetensors"
+    save_file({"w": torch.zeros(3)}, str(bad), metadata={"format": "something/else"})
+    for path, reason in ((bad, "something/else"), (tmp_path / "none.safetensors", "not found"),
+                         (tmp_path, "without best.safetensors")):
+        with pytest.raises(ModelFileError, match=reason):
+            read_model_header(path)
 
 
 def test_model_file_mismatched_weights(model_file, tmp_path):

@@ -45,9 +45,8 @@ def save_model(path: str | os.PathLike, model: LightNet, info: dict | None = Non
     atomic_write(path, write)
 
 
-def read_model_file(path: str | os.PathLike) -> tuple[NetConfig, dict, dict]:
-    """``(config, state_dict, info)`` of a model file; raises :class:`ModelFileError`."""
-    from safetensors import SafetensorError, safe_open
+def _model_path(path: str | os.PathLike) -> str:
+    """The model file ``path`` names (a run folder means its ``best.safetensors``)."""
     path = os.fspath(path)
     if os.path.isdir(path):
         candidate = os.path.join(path, "best.safetensors")
@@ -56,10 +55,16 @@ def read_model_file(path: str | os.PathLike) -> tuple[NetConfig, dict, dict]:
         path = candidate
     if not os.path.isfile(path):
         raise ModelFileError(f"model file not found: {path}")
+    return path
+
+
+def _read(path: str | os.PathLike, tensors: bool) -> tuple[NetConfig, dict, dict]:
+    from safetensors import SafetensorError, safe_open
+    path = _model_path(path)
     try:
         with safe_open(path, framework="pt") as f:
             meta = f.metadata() or {}
-            state = {k: f.get_tensor(k) for k in f.keys()}
+            state = {k: f.get_tensor(k) for k in f.keys()} if tensors else {}
     except (SafetensorError, OSError, ValueError, RuntimeError) as exc:
         text = str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__
         raise ModelFileError(f"{path}: not a readable safetensors model ({text})") from None
@@ -75,6 +80,17 @@ def read_model_file(path: str | os.PathLike) -> tuple[NetConfig, dict, dict]:
     except (json.JSONDecodeError, TypeError, ValueError) as exc:
         raise ModelFileError(f"{path}: bad model metadata ({str(exc).splitlines()[0][:120]})") from None
     return config, state, info
+
+
+def read_model_file(path: str | os.PathLike) -> tuple[NetConfig, dict, dict]:
+    """``(config, state_dict, info)`` of a model file; raises :class:`ModelFileError`."""
+    return _read(path, tensors=True)
+
+
+def read_model_header(path: str | os.PathLike) -> tuple[NetConfig, dict]:
+    """``(config, info)`` of a model file from its header alone (no tensor is read)."""
+    config, _, info = _read(path, tensors=False)
+    return config, info
 
 
 def load_model_file(path: str | os.PathLike) -> LightNet:
