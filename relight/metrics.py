@@ -25,8 +25,8 @@ __all__ = [
     "pan_error_deg", "tilt_error_deg", "direction_error_deg", "colour_error_deg",
     "light_errors", "summary_stats", "TILT_LEVELS", "PAN_LEVELS", "PAN_TABLE_TILT_DEG",
     "METRICS", "tilt_level", "pan_level", "error_tables", "format_tables", "pan_where_defined",
-    "format_pan_where_defined",
-    "ZENITH_TILT_DEG",
+    "format_pan_where_defined", "pan_by_tilt", "format_pan_by_tilt",
+    "ZENITH_TILT_DEG", "TILT_STEP_DEG",
 ]
 
 METRICS = ("pan", "tilt", "direction", "colour")  # keys of light_errors, table order
@@ -35,6 +35,7 @@ PAN_LEVELS = {"front": (315.0, 45.0), "right": (45.0, 135.0),
               "back": (135.0, 225.0), "left": (225.0, 315.0)}
 PAN_TABLE_TILT_DEG = (30.0, 70.0)  # true tilt range (inclusive) kept for the pan table
 ZENITH_TILT_DEG = 90.0             # a light here has no pan (SID2 draws tilt 90 in 1 of 13 steps)
+TILT_STEP_DEG = 5.0                # SID2's light tilt step: the rows of pan_by_tilt
 STATS = ("n", "mean", "median", "trimean", "best25", "worst25", "max")
 STAT_LABELS = {"mean": "Mean", "median": "Median", "trimean": "Trimean",
                "best25": "Best 25%", "worst25": "Worst 25%", "max": "Max"}
@@ -275,6 +276,47 @@ def format_pan_where_defined(split: dict) -> str:
     return (f"Pan is undefined for a light at the zenith: {z['n']} of {z['n'] + b['n']} images have true "
             f"tilt 90, their pan error is a guess's (mean {z['mean']:.2f}). Pan over the other {b['n']}: "
             f"mean {b['mean']:.2f}, median {b['median']:.2f}.\n")
+
+
+def pan_by_tilt(pan_error_deg, tilt_gt_deg, step_deg: float = TILT_STEP_DEG) -> list[dict]:
+    """Where a set's mean pan error comes from: one row per true-tilt step.
+
+    Near the zenith a small change of direction is a large change of pan (a light at tilt
+    ``t`` moves ``cos t`` times its pan change), so the lights at 80-90 deg can carry most of
+    the mean pan error. Tilts are binned to the nearest multiple of ``step_deg`` (SID2
+    draws them in 5 deg steps; real data falls into the nearest bin). Each row is
+    ``{"tilt_deg": bin centre, "n", "mean", "median", "share"}``, ascending tilt, empty bins
+    left out; ``share`` is the bin's error sum over the set's size, its part of the set's
+    mean, so the shares add up to the overall mean.
+
+    >>> rows = pan_by_tilt([2.0, 4.0, 30.0, 120.0], [30.0, 32.4, 85.0, 90.0])
+    >>> [(r["tilt_deg"], r["n"], r["mean"], r["share"]) for r in rows]
+    [(30.0, 2, 3.0, 1.5), (85.0, 1, 30.0, 7.5), (90.0, 1, 120.0, 30.0)]
+    """
+    e = np.asarray(pan_error_deg, dtype=np.float64).ravel()
+    t = np.asarray(tilt_gt_deg, dtype=np.float64).ravel()
+    if e.size != t.size:
+        raise ValueError(f"pan_by_tilt needs equal lengths, got {e.size} and {t.size}")
+    if not step_deg > 0:
+        raise ValueError(f"pan_by_tilt needs a positive step, got {step_deg}")
+    bins = np.floor(t / step_deg + 0.5) * step_deg
+    rows = []
+    for b in np.unique(bins):
+        s = summary_stats(e[bins == b])
+        rows.append({"tilt_deg": float(b), "n": s["n"], "mean": s["mean"], "median": s["median"],
+                     "share": float(e[bins == b].sum() / e.size)})
+    return rows
+
+
+def format_pan_by_tilt(rows: list[dict]) -> str:
+    """Markdown table of :func:`pan_by_tilt` (empty for no rows)."""
+    if not rows:
+        return ""
+    lines = ["**Pan error by true light tilt (degrees; share = the step's part of the overall mean)**", "",
+             "| Tilt | n | Mean | Median | Share of the mean |", "|---:|---:|---:|---:|---:|"]
+    lines += [f"| {r['tilt_deg']:g} | {r['n']} | {r['mean']:.2f} | {r['median']:.2f} | {r['share']:.2f} |"
+              for r in rows]
+    return "\n".join(lines) + "\n"
 
 
 def _metric_order(group: dict) -> list[str]:

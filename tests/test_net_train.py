@@ -148,6 +148,11 @@ def test_cli_evaluate_writes_report(tiny, model_file, tmp_path):
     if cct["n"]:
         assert cct["kelvin"]["mean"] >= 0 and cct["mired"]["mean"] >= 0
     assert "CCT (mired)" in open(rep / "report.md").read()
+    # the pan error by true tilt: its rows add up to Table 1's mean pan error
+    by_tilt = metrics_doc["pan_by_tilt"]
+    assert sum(r["n"] for r in by_tilt) == 8
+    assert sum(r["share"] for r in by_tilt) == pytest.approx(tables["overall"]["pan"]["mean"], rel=1e-9)
+    assert "Pan error by true light tilt" in open(rep / "report.md").read()
 
 
 def _one_line_error(capsys):

@@ -177,6 +177,7 @@ def evaluate(model, data_dir: str | os.PathLike, out_dir: str | os.PathLike, spl
     errors = metrics.light_errors(pan, tilt, rgb, truth["pan_rel_deg"], truth["tilt_deg"], truth["rgb"])
     tables = metrics.error_tables(errors, truth["tilt_deg"], truth["pan_rel_deg"])
     pan_split = metrics.pan_where_defined(errors["pan"], truth["tilt_deg"])
+    pan_tilt = metrics.pan_by_tilt(errors["pan"], truth["tilt_deg"])
     extras = extra_fields(rgb, kappa)
     from relight.colour import rgb_to_cct_duv_near_locus
     cct_true = np.array([r["light"].get("cct_k", np.nan) if isinstance(r.get("light"), dict) else np.nan
@@ -201,13 +202,15 @@ def evaluate(model, data_dir: str | os.PathLike, out_dir: str | os.PathLike, spl
         t.makedirs(out_dir)
         t.stage_text(os.path.join(out_dir, "report.md"),
                      header + metrics.format_tables(tables) + "\n"
-                     + metrics.format_pan_where_defined(pan_split) + "\n" + _stats_table(errors) + "\n"
+                     + metrics.format_pan_where_defined(pan_split) + "\n" + metrics.format_pan_by_tilt(pan_tilt)
+                     + "\n" + _stats_table(errors) + "\n"
                      + _format_cct(cct, tables["overall"]["colour"])
                      + ("\n" + format_summary(uncertainty) + "\n![reliability](reliability.png)\n"
                         if uncertainty else ""))
         t.stage_text(os.path.join(out_dir, "metrics.json"), json.dumps(
             {"model": model_name, "dataset": os.path.abspath(data_dir), "split": split,
-             "n": len(dataset), "tables": tables, "pan_where_defined": pan_split, "cct": cct,
+             "n": len(dataset), "tables": tables, "pan_where_defined": pan_split,
+             "pan_by_tilt": pan_tilt, "cct": cct,
              **({"uncertainty": uncertainty} if uncertainty else {})}, indent=1))
         if uncertainty:
             t.stage(os.path.join(out_dir, "reliability.png"),
