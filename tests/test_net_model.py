@@ -135,3 +135,25 @@ def test_folded_batchnorm_gives_the_same_outputs(arch, tmp_path):
     with pytest.raises(ValueError, match="folded"):
         save_model(tmp_path / "m.safetensors", folded)
     assert not (tmp_path / "m.safetensors").exists()
+
+
+def test_mirror_average_is_mirror_equivariant_and_the_mean_of_two_views():
+    """MirrorAveraged: its 7-vector is the mean of the network's for the image and (mapped
+    back, y0 -> -y0) for its mirror image, kappa the mean of the two; so the mirror image
+    gets exactly the mirrored light (pan sine negated), the same tilt, colour and kappa,
+    which the bare network does not."""
+    from relight.net.data import flip_image, flip_y
+    from relight.net.model import MirrorAveraged
+    torch.manual_seed(3)
+    net = LightNet(NetConfig(res=32, width=8, kappa_head=True)).eval()
+    avg = MirrorAveraged(net).eval()
+    assert avg.config is net.config and avg.has_kappa
+    x = torch.rand(5, 3, 32, 32)
+    with torch.no_grad():
+        (y, k), (yf, kf) = net.forward_with_kappa(x), net.forward_with_kappa(flip_image(x))
+        ya, ka = avg.forward_with_kappa(x)
+        ym, km = avg.forward_with_kappa(flip_image(x))
+        assert torch.allclose(avg(x), ya)
+    assert torch.allclose(ya, (y + flip_y(yf)) / 2, atol=1e-6) and torch.allclose(ka, (k + kf) / 2, rtol=1e-6)
+    assert torch.allclose(ym, flip_y(ya), atol=1e-6) and torch.allclose(km, ka, rtol=1e-6)
+    assert not torch.allclose(yf, flip_y(y), atol=1e-3)   # the bare network is not equivariant

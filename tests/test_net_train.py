@@ -119,6 +119,33 @@ def test_cli_predict_png_jpeg_exr(tiny, model_file, tmp_path, capsys):
     assert sorted(p.id for p in preds.predictions) == ["hdr", "photo", "shot"]
 
 
+def test_cli_mirror_average_predicts_the_mirrored_light_for_a_mirror_image(tiny, model_file, tmp_path):
+    """predict --mirror-average on an image and on its mirror image: pan_rel p and 360 - p,
+    the same tilt and colour (without the option an untrained network breaks this)."""
+    from PIL import Image
+    src = Image.open(os.path.join(tiny, "images", "000001.png"))
+    img_dir = tmp_path / "imgs"
+    img_dir.mkdir()
+    src.save(img_dir / "a.png")
+    src.transpose(Image.FLIP_LEFT_RIGHT).save(img_dir / "b.png")
+    found = {}
+    for opt in ([], ["--mirror-average"]):
+        out = tmp_path / f"pred{len(opt)}.json"
+        assert main(["predict", str(img_dir), "--model", model_file, "--out", str(out), *opt]) == 0
+        found[bool(opt)] = {p["id"]: p for p in json.load(open(out))["predictions"]}
+    a, b = found[True]["a"], found[True]["b"]
+    from relight.metrics import pan_error_deg
+    assert pan_error_deg(a["pan_deg"], 360.0 - b["pan_deg"]) < 1e-3
+    assert a["tilt_deg"] == pytest.approx(b["tilt_deg"], abs=1e-4)
+    assert np.allclose(a["rgb"], b["rgb"], atol=1e-5)
+    a0, b0 = found[False]["a"], found[False]["b"]
+    assert abs(a0["tilt_deg"] - b0["tilt_deg"]) > 1e-3 or not np.allclose(a0["rgb"], b0["rgb"], atol=1e-5)
+    rep = tmp_path / "rep"
+    assert main(["evaluate", "--model", model_file, "--data", tiny, "--split", "all", "--out", str(rep),
+                 "--mirror-average"]) == 0
+    assert json.load(open(rep / "metrics.json"))["model"] == f"{model_file} (mirror-averaged)"
+
+
 def test_cli_evaluate_writes_report(tiny, model_file, tmp_path):
     rep = tmp_path / "rep"
     assert main(["evaluate", "--model", model_file, "--data", tiny, "--split", "all", "--out", str(rep)]) == 0

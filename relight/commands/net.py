@@ -72,6 +72,7 @@ def add_commands(sub) -> None:
     e.add_argument("--split", default="test", choices=["train", "val", "test", "all"],
                    help="which records (default test; 'all' for a fresh test-only dataset)")
     e.add_argument("--out", required=True, help="report folder")
+    at.add_mirror_option(e)
     at.add_scheduler_option(e, "the network")
     e.set_defaults(func=cmd_evaluate)
 
@@ -82,6 +83,7 @@ def add_commands(sub) -> None:
                    help="camera tilt in degrees used to decode the light tilt (default 45, the paper's)")
     p.add_argument("--model", default=None, help="model .safetensors or run folder (default: shipped model)")
     p.add_argument("--out", required=True, help="predictions file to write (relight.predictions/v1)")
+    at.add_mirror_option(p)
     p.set_defaults(func=cmd_predict)
 
 
@@ -125,6 +127,11 @@ def cmd_calibrate(args) -> int:
     return 0
 
 
+def _model_label(args, default: str) -> str:
+    """The model as reports name it: the --model given (else ``default``), and how it was run."""
+    return (args.model or default) + (" (mirror-averaged)" if args.mirror_average else "")
+
+
 def cmd_evaluate(args) -> int:
     import torch
 
@@ -135,8 +142,8 @@ def cmd_evaluate(args) -> int:
     check_outputs([args.out], [args.data, args.model])
     check_folder_target(args.out)
     torch.set_num_threads(1)
-    model = load_model(args.model)
-    name = args.model or "shipped model"
+    model = load_model(args.model, mirror_average=args.mirror_average)
+    name = _model_label(args, "shipped model")
     tables = evaluate(model, args.data, args.out, split=args.split, model_name=name, scheduler=args.scheduler)
     print(metrics.format_tables(tables, only_table1=True))
     import json
@@ -161,7 +168,7 @@ def cmd_predict(args) -> int:
     from relight.predictions import write_predictions
     check_outputs([args.out], args.images + [args.model])
     check_file_target(args.out)
-    model = load_model(args.model)
+    model = load_model(args.model, mirror_average=args.mirror_average)
     files = list_images(args.images)
     check_outputs([args.out], files)
     tilt = DEFAULT_CAMERA_TILT_DEG if args.camera_tilt is None else args.camera_tilt
@@ -181,7 +188,7 @@ def cmd_predict(args) -> int:
         print(f"{p['id'][:20]:<20} {p['pan_deg']:8.1f} {p['tilt_deg']:7.1f} {cone}  {rgb:<22} {cct} {p['assumed']}")
     fields = ("id", "pan_deg", "tilt_deg", "rgb", "y", "cct_k", "duv", "kappa", "cone90_deg", "colour_reliable")
     entries = [{k: p[k] for k in fields if k in p} | {"file": os.path.abspath(p["file"])} for p in preds]
-    write_predictions(args.out, entries, model=args.model or "shipped", camera_tilt_deg=tilt,
+    write_predictions(args.out, entries, model=_model_label(args, "shipped"), camera_tilt_deg=tilt,
                       inputs=files)
     print(f"wrote {args.out} ({len(entries)} predictions)")
     return 0

@@ -43,10 +43,12 @@ def is_achromatic(srgb8: np.ndarray, tolerance: int = ACHROMATIC_TOLERANCE) -> b
     return bool(int((a.max(axis=2) - a.min(axis=2)).max()) <= tolerance)
 
 
-def load_model(path: str | os.PathLike | None = None):
+def load_model(path: str | os.PathLike | None = None, mirror_average: bool = False):
     """Load a model file (``None``: the shipped model) for inference: eval mode, batch
     norms folded into the convolutions (:meth:`~relight.net.model.LightNet.fold_batchnorm`).
-    To train, calibrate or save a model, use :func:`relight.net.io.load_model_file`.
+    With ``mirror_average`` each image's prediction is averaged with its mirror image's
+    (:class:`~relight.net.model.MirrorAveraged`). To train, calibrate or save a model,
+    use :func:`relight.net.io.load_model_file`.
 
     Raises :class:`relight.net.io.ModelFileError` (one line) on a missing, corrupt or
     foreign file.
@@ -55,7 +57,11 @@ def load_model(path: str | os.PathLike | None = None):
         if not os.path.isfile(SHIPPED_MODEL):
             raise ModelFileError(f"no shipped model at {SHIPPED_MODEL}; give --model")
         path = SHIPPED_MODEL
-    return load_model_file(path).fold_batchnorm()
+    model = load_model_file(path).fold_batchnorm()
+    if mirror_average:
+        from relight.net.model import MirrorAveraged
+        model = MirrorAveraged(model).eval()
+    return model
 
 
 def _predict_inputs(model, inputs: list[torch.Tensor], camera_tilt_deg, batch_size: int = 32,
