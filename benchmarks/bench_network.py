@@ -11,7 +11,9 @@ table are measured side by side in this run, so they hold even on a busy machine
 ``--model`` times a trained model as ``relight predict`` runs it (``forward_with_kappa``,
 eval mode, batch norms folded; ``shipped``: the package's model) instead of a fresh small
 network, and prints the folded / unfolded latency ratio measured alternately in the same
-run. The latency columns give the median and the minimum (an idle core's figure).
+run, and the latency of ``--mirror-average`` (:class:`relight.net.model.MirrorAveraged`)
+over one image's, timed the same way. The latency columns give the median and the minimum
+(an idle core's figure).
 """
 from __future__ import annotations
 
@@ -23,7 +25,7 @@ import time
 import torch
 
 from relight.net.loss import light_loss
-from relight.net.model import LightNet, NetConfig, count_parameters, flops_per_image
+from relight.net.model import LightNet, MirrorAveraged, NetConfig, count_parameters, flops_per_image
 
 
 def _times(fn, repeats: int) -> list[float]:
@@ -52,18 +54,18 @@ def _network(res: int, model: str | None) -> LightNet:
     return load_model_file(SHIPPED_MODEL if model == "shipped" else model)
 
 
-def _folded_ratio(net: LightNet, folded: LightNet, one: torch.Tensor, repeats: int) -> tuple[float, list[float]]:
-    """Median latency of ``folded`` (``net`` with batch norms folded) over ``net``'s, the
-    two timed alternately (so both see the same machine), and ``folded``'s times."""
-    plain, fast = [], []
+def _alternate_ratio(base, other, repeats: int) -> tuple[float, list[float]]:
+    """Median time of ``other()`` over ``base()``'s, the two timed alternately (so both see
+    the same machine), and ``other``'s times."""
+    a, b = [], []
     for _ in range(3):
-        net.forward_with_kappa(one), folded.forward_with_kappa(one)
+        base(), other()
     for _ in range(repeats):
-        for f, out in ((net, plain), (folded, fast)):
+        for f, out in ((base, a), (other, b)):
             t0 = time.perf_counter()
-            f.forward_with_kappa(one)
+            f()
             out.append(time.perf_counter() - t0)
-    return statistics.median(fast) / statistics.median(plain), fast
+    return statistics.median(b) / statistics.median(a), b
 
 
 def bench(res: int, threads: int, repeats: int, batch: int, train_batch: int, model: str | None = None) -> dict:
@@ -73,14 +75,18 @@ def bench(res: int, threads: int, repeats: int, batch: int, train_batch: int, mo
     net.eval()
     one = torch.rand(1, 3, res, res)
     many = torch.rand(batch, 3, res, res)
-    ratio = None
+    ratio = mirror_ratio = None
     with torch.no_grad():
         if model is None:
             single = _times(lambda: net.forward_with_kappa(one), repeats)
             batch_s = _timed(lambda: net.forward_with_kappa(many), max(3, repeats // 4))
         else:   # as relight predict runs it: batch norms folded
             folded = copy.deepcopy(net).fold_batchnorm()
-            ratio, single = _folded_ratio(net, folded, one, repeats)
+            ratio, single = _alternate_ratio(lambda: net.forward_with_kappa(one),
+                                             lambda: folded.forward_with_kappa(one), repeats)
+            mirrored = MirrorAveraged(folded)
+            mirror_ratio, _ = _alternate_ratio(lambda: folded.forward_with_kappa(one),
+                                               lambda: mirrored.forward_with_kappa(one), repeats)
             batch_s = _timed(lambda: folded.forward_with_kappa(many), max(3, repeats // 4))
     net.train()
     opt = torch.optim.Adam(net.parameters(), lr=2e-4)
@@ -95,6 +101,7 @@ def bench(res: int, threads: int, repeats: int, batch: int, train_batch: int, mo
     train_s = _timed(step, max(3, repeats // 4))
     return {"threads": threads, "latency_ms": 1e3 * statistics.median(single), "latency_min_ms": 1e3 * min(single),
             "infer_img_s": batch / batch_s, "folded_ratio": ratio,
+            "mirror_ratio": mirror_ratio,
             "train_img_s": train_batch / train_s}
 
 
@@ -128,6 +135,8 @@ def main() -> None:
         if r["folded_ratio"] is not None:
             print(f"\n{r['threads']} threads: latency with batch norms folded / unfolded = {r['folded_ratio']:.3f} "
                   f"(median, timed alternately)")
+            print(f"{r['threads']} threads: latency with --mirror-average / without = {r['mirror_ratio']:.2f} "
+                  f"(median, timed alternately; about {r['mirror_ratio'] * r['latency_ms']:.1f} ms)")
     if len(rows) > 1:
         base = rows[0]
         for r in rows[1:]:
