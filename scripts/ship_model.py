@@ -264,9 +264,25 @@ def _fine_tune_why(before: dict, after: dict, default_data: str) -> str:
             f"{before['plateau_patience'] + 1} epochs without a better val loss")
 
 
-def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_evals: dict | None = None) -> str:
+def mirror_line(mirror_eval_dir: str | None, test_data: str) -> str:
+    """The card's line for the test set evaluated with ``--mirror-average`` ("" without)."""
+    if not mirror_eval_dir:
+        return ""
+    ev = json.load(open(os.path.join(mirror_eval_dir, "metrics.json")))
+    o = ev["tables"]["overall"]
+    cones = ev.get("uncertainty", {}).get("cone90_coverage")
+    return (f"With `--mirror-average` (each image and its mirror image, the two predictions averaged; about "
+            f"1.8x the time), mean errors: pan {o['pan']['mean']:.2f}, tilt {o['tilt']['mean']:.2f}, direction "
+            f"{o['direction']['mean']:.2f}, colour {o['colour']['mean']:.2f}"
+            + (f"; the 90% cones cover {100 * cones:.1f}%" if cones is not None else "")
+            + f" (`relight evaluate --data {test_data} --split all --mirror-average --out REPORT`).\n\n")
+
+
+def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_evals: dict | None = None,
+               mirror_eval_dir: str | None = None) -> str:
     """Write MODEL_CARD.md into the models folder and return its text; ``prior_evals``:
-    ``{prior name: (test set, evaluation folder)}``."""
+    ``{prior name: (test set, evaluation folder)}``; ``mirror_eval_dir``: the test set's
+    evaluation with ``--mirror-average``."""
     from relight.net.model import NetConfig
     models_dir = meta.get("models_dir", MODELS_DIR)
     ev = json.load(open(os.path.join(eval_dir, "metrics.json")))
@@ -402,7 +418,7 @@ all {ev['n']} images, errors in degrees:
 |---|---:|---:|---:|
 {table1}
 
-{pan_line}Paper Table 2 (tilt levels) and Table 3 (pan levels, tilt 30-70) next to ours (means;
+{pan_line}{mirror_line(mirror_eval_dir, test_data)}Paper Table 2 (tilt levels) and Table 3 (pan levels, tilt 30-70) next to ours (means;
 paper columns first):
 
 | Level | Paper pan | Paper tilt | Paper dir. | Paper colour | Pan | Tilt | Dir. | Colour | n |
@@ -462,12 +478,16 @@ def main() -> int:
     from relight.net.predict import load_model
     shipped = load_model(os.path.join(args.models_dir, os.path.basename(SHIPPED_MODEL)))
     evaluate(shipped, args.test_data, eval_out, split="all", model_name="shipped model")
+    from relight.net.model import MirrorAveraged
+    mirror_out = f"{eval_out.rstrip('/')}-mirror"
+    evaluate(MirrorAveraged(shipped), args.test_data, mirror_out, split="all",
+             model_name="shipped model (mirror-averaged)")
     prior_evals = {}
     for name, folder in prior_tests.items():
         prior_evals[name] = (folder, f"{eval_out.rstrip('/')}-prior-{name}")
         evaluate(shipped, folder, prior_evals[name][1], split="all", model_name=f"shipped model, prior {name}")
     notes = open(args.notes).read().strip() if args.notes else "(no notes given)"
-    print(write_card(meta, eval_out, args.test_data, notes, prior_evals))
+    print(write_card(meta, eval_out, args.test_data, notes, prior_evals, mirror_out))
     return 0
 
 

@@ -100,6 +100,11 @@ def test_card_reads_metadata_and_reports_each_prior(ship_model, world, tmp_path,
         assert f"| {overall['colour']['mean']:.2f} | {overall['colour']['median']:.2f} |" in row
     assert (models / "sid2.safetensors").is_file() and (models / "sid2_log.csv").is_file()
     assert "not finished" not in card and "--epochs 1 " in card
+    mirrored = json.load(open(tmp_path / "ev-mirror" / "metrics.json"))
+    assert mirrored["model"] == "shipped model (mirror-averaged)"
+    line = next(x for x in card.splitlines() if x.startswith("With `--mirror-average`"))
+    assert f"direction {mirrored['tables']['overall']['direction']['mean']:.2f}, " in line
+    assert f"cover {100 * mirrored['uncertainty']['cone90_coverage']:.1f}%" in line
     ev = json.load(open(tmp_path / "ev" / "metrics.json"))
     if ev["pan_where_defined"]["zenith"]["n"]:
         assert f"Pan over the other {ev['pan_where_defined']['below_zenith']['n']}:" in card

@@ -372,12 +372,13 @@ class MirrorAveraged(nn.Module):
     prediction back gives a second estimate; this returns the mean of the two 7-vectors
     (then decoded as usual) and the mean of the two kappas. The result is exactly
     mirror-equivariant, and costs one batch of twice the size (about 1.8x the time of
-    one image). ``config`` and ``has_kappa`` are the network's.
+    one image). ``config``, ``has_kappa`` and the train/eval mode are the network's.
     """
 
     def __init__(self, net: LightNet):
         super().__init__()
         self.net = net
+        self.training = net.training   # the network's mode (a folded network stays in eval)
 
     @property
     def config(self) -> NetConfig:

@@ -60,7 +60,7 @@ def load_model(path: str | os.PathLike | None = None, mirror_average: bool = Fal
     model = load_model_file(path).fold_batchnorm()
     if mirror_average:
         from relight.net.model import MirrorAveraged
-        model = MirrorAveraged(model).eval()
+        model = MirrorAveraged(model)
     return model
 
 
