@@ -125,6 +125,8 @@ def test_folded_batchnorm_gives_the_same_outputs(arch, tmp_path):
     with torch.no_grad():
         (y0, k0), (y1, k1) = net.forward_with_kappa(x), folded.forward_with_kappa(x)
     assert not any(isinstance(m, torch.nn.BatchNorm2d) for m in folded.modules())
+    convs = [m for m in folded.modules() if isinstance(m, torch.nn.Conv2d)]
+    assert convs and all(c.weight.is_contiguous(memory_format=torch.channels_last) for c in convs)
     assert any(isinstance(m, torch.nn.BatchNorm2d) for m in net.modules())
     scale = y0.abs().max().item()
     assert (y1 - y0).abs().max().item() <= 1e-4 * scale

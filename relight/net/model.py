@@ -295,6 +295,8 @@ class LightNet(nn.Module):
         """``(N, 3, H, W)`` -> embedding ``(N, embed)``."""
         if x.ndim != 4 or x.shape[1] != 3:
             raise ValueError(f"expected images of shape (N, 3, H, W), got {tuple(x.shape)}")
+        if self.folded:   # the inference layout (fold_batchnorm)
+            x = x.contiguous(memory_format=torch.channels_last)
         if self.config.arch == "small":
             x = self.stem(x)
             x = self.pool(self.inc1(x))
@@ -344,10 +346,12 @@ class LightNet(nn.Module):
         In eval mode a batch norm is an affine map per channel, so ``conv -> bn`` equals
         one convolution with scaled weights and a bias
         (:func:`torch.nn.utils.fusion.fuse_conv_bn_eval`); outputs agree to float32
-        rounding and single-image latency drops by about a tenth
-        (``benchmarks/bench_network.py --model shipped``). The folded network has no
-        batch norms left, so it cannot be trained or saved (:func:`relight.net.io.save_model`
-        refuses it): load the file again for that. Returns ``self``, in eval mode.
+        rounding. The weights and inputs then go channels-last (NHWC), the layout the
+        CPU convolutions run fastest in. Together: single-image latency about 0.7x,
+        batches of 64 about 0.5x (``benchmarks/bench_network.py --model shipped``). The
+        folded network has no batch norms left, so it cannot be trained or saved
+        (:func:`relight.net.io.save_model` refuses it): load the file again for that.
+        Returns ``self``, in eval mode.
         """
         from torch.nn.utils.fusion import fuse_conv_bn_eval
         self.eval()
@@ -355,6 +359,7 @@ class LightNet(nn.Module):
             if isinstance(m, ConvBN) and isinstance(m[1], nn.BatchNorm2d):
                 m[0] = fuse_conv_bn_eval(m[0], m[1])
                 m[1] = nn.Identity()
+        self.to(memory_format=torch.channels_last)
         self._folded = True
         return self
 
