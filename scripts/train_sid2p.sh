@@ -21,4 +21,4 @@ if [ ! -f "$BASE" ]; then   # the model and its meta file (which keeps stage 1's
     mv "$BASE.part" "$BASE"
 fi
 exec "$RELIGHT" train --init "$BASE" --data "$ROOT/sid2p-train" --out "$ROOT/runs/sid2p-ft" \
-    --lr 2e-5 --loss-weights 1,1,4 --epochs 14 --torch-threads "$THREADS" --arch paper --kappa-weight 1 --resume
+    --lr 2e-5 --loss-weights 1,1,4 --epochs 20 --torch-threads "$THREADS" --arch paper --kappa-weight 1 --resume
