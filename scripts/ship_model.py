@@ -43,7 +43,8 @@ PAPER_TILT = {"L1": (4.92, 5.14, 7.57, 1.04), "L2": (8.51, 5.14, 11.97, 0.90), "
 PAPER_PAN = {"front": (6.87, 5.10, 9.10, 0.98), "right": (6.24, 5.12, 8.80, 0.96),
              "back": (6.35, 5.09, 9.46, 1.03), "left": (6.01, 5.16, 9.03, 0.97)}
 STAGE_WORDS = {2: "Two", 3: "Three", 4: "Four", 5: "Five"}
-GENERATE_FLAGS = ("res", "spp", "target_rmse", "sampler", "colour_prior", "object_parts", "max_depth", "mesh_dir")
+GENERATE_FLAGS = ("res", "spp", "target_rmse", "sampler", "colour_prior", "object_parts", "backgrounds",
+                  "max_depth", "mesh_dir")
 
 
 def _copy(src: str, dst: str) -> None:
@@ -52,7 +53,8 @@ def _copy(src: str, dst: str) -> None:
 
 def dataset_settings(card: dict) -> dict:
     """Generator settings of a dataset card, with the values of cards written before a
-    field existed (sampler ``independent``, prior ``hsv``, one-colour objects) and the samples per pixel
+    field existed (sampler ``independent``, prior ``hsv``, one-colour objects, pattern backgrounds) and the
+    samples per pixel
     the run took (``spp_used``: the card's ``spp``, resolved from the noise target)."""
     from relight.scene.sampling import LEGACY_CONFIG
     cfg = LEGACY_CONFIG | dict(card["config"])
@@ -74,12 +76,14 @@ def settings_text(card: dict) -> str:
     cfg = dataset_settings(card)
     lo, hi = cfg["object_parts"]
     parts = "one colour per object" if hi == 1 else f"objects of {lo if lo == hi else f'{lo}-{hi}'} coloured parts"
-    return f"{cfg['res']} px, {noise_text(card)}, colour prior {cfg['colour_prior']}, {parts}"
+    return (f"{cfg['res']} px, {noise_text(card)}, colour prior {cfg['colour_prior']}, {parts}, "
+            f"{cfg['backgrounds']} backgrounds")
 
 
 def generate_command(card: dict, path: str, count: int) -> tuple[str, str]:
     """``(command, note)``: the ``relight generate`` command that makes a dataset with the
-    card's settings (explicit options for the noise, sampler, colour prior and object parts; settings
+    card's settings (explicit options for the noise, sampler, colour prior, object parts and
+    backgrounds; settings
     without an option go into ``--config CONFIG.json``, which the note spells out)."""
     import dataclasses
 
@@ -96,6 +100,7 @@ def generate_command(card: dict, path: str, count: int) -> tuple[str, str]:
     opts += [f"--sampler {cfg['sampler']}", f"--colour-prior {cfg['colour_prior']}"]
     lo, hi = cfg["object_parts"]
     opts.append(f"--object-parts {lo}" if lo == hi else f"--object-parts {lo}-{hi}")
+    opts.append(f"--backgrounds {cfg['backgrounds']}")
     if cfg.get("max_depth", default["max_depth"]) != default["max_depth"]:
         opts.append(f"--max-depth {cfg['max_depth']}")
     if cfg.get("mesh_dir"):

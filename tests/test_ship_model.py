@@ -44,11 +44,22 @@ def test_generate_command_names_the_object_parts(ship_model):
     assert "--object-parts 4 " in ship_model.generate_command(card, "d", 2500)[0] + " "
 
 
+def test_generate_command_and_settings_name_the_backgrounds(ship_model):
+    card = {"seed": 5, "spp": 16, "config": {"res": 128, "spp": None, "target_rmse": 0.02, "sampler": "multijitter",
+                                             "colour_prior": "hsv", "object_parts": [1, 32]}}
+    assert "--object-parts 1-32 --backgrounds patterns" in ship_model.generate_command(card, "d", 9)[0]
+    assert ship_model.settings_text(card).endswith(", patterns backgrounds")   # a card from before the setting
+    card["config"]["backgrounds"] = "mosaic"
+    cmd, note = ship_model.generate_command(card, "d", 9)
+    assert "--backgrounds mosaic" in cmd and "--config" not in cmd and note == ""
+    assert ship_model.settings_text(card).endswith(", mosaic backgrounds")
+
+
 def test_generate_command_of_a_legacy_card(ship_model):
     """Cards written before the sampler and prior fields: independent sampler, hsv prior."""
     card = {"seed": 1, "config": {"res": 64, "spp": 32, "max_depth": 4}}
     cmd, note = ship_model.generate_command(card, "d", 10)
-    assert "--res 64 --spp 32 --sampler independent --colour-prior hsv --object-parts 1" in cmd
+    assert "--res 64 --spp 32 --sampler independent --colour-prior hsv --object-parts 1 --backgrounds patterns" in cmd
     assert "--target-rmse" not in cmd and "--config" not in cmd and note == ""
     assert ship_model.noise_text(card) == "sampler independent, 32 spp (fixed)"
 

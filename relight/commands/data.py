@@ -6,6 +6,7 @@ import sys
 
 from relight.commands import argtypes as at
 from relight.scene.albedo import PRIORS
+from relight.scene.textures import BACKGROUNDS
 from relight.scene.spec import SAMPLERS
 
 
@@ -26,6 +27,10 @@ def add_commands(sub) -> None:
                    help="Mitsuba sampler (default multijitter)")
     g.add_argument("--colour-prior", choices=PRIORS, default=None,
                    help="surface-colour prior of textures and objects (default hsv; see README)")
+    g.add_argument("--backgrounds", choices=BACKGROUNDS, default=None,
+                   help="wall and floor textures: patterns (default; 2-5 colours each) or mosaic "
+                        "(grids of 4-16 x 4-16 independently coloured cells: many surfaces in "
+                        "view; see README)")
     g.add_argument("--object-parts", type=at.object_parts, default=None, metavar="N|LO-HI",
                    help="independently coloured parts per object, N or a range drawn per object "
                         "(the paper colours each mesh part; default 1-32; see README)")
@@ -62,7 +67,7 @@ def cmd_generate_mid(args) -> int:
     cfg = mid_config(args.config, res=args.res, spp=args.spp, max_depth=args.max_depth,
                      refused={"--workers": args.workers != 1, "--scheduler": args.scheduler,
                               "--sampler": args.sampler, "--colour-prior": args.colour_prior,
-                              "--object-parts": args.object_parts,
+                              "--object-parts": args.object_parts, "--backgrounds": args.backgrounds,
                               "--mesh-dir": args.mesh_dir, "--target-rmse": args.target_rmse})
     check_outputs([args.out], [args.config])
     stats = generate_mid(args.out, args.count, seed=args.seed, cfg=cfg, progress=not args.quiet,
@@ -81,7 +86,7 @@ def cmd_generate(args) -> int:
     from relight.fileio import check_outputs
     from relight.scene.sampling import GeneratorConfig
     overrides = dict(res=args.res, spp=args.spp, max_depth=args.max_depth, sampler=args.sampler,
-                     target_rmse=args.target_rmse, colour_prior=args.colour_prior,
+                     target_rmse=args.target_rmse, colour_prior=args.colour_prior, backgrounds=args.backgrounds,
                      object_parts=args.object_parts, mesh_dir=os.path.abspath(args.mesh_dir) if args.mesh_dir else None)
     if args.config:
         cfg = GeneratorConfig.from_file(args.config, **overrides)

@@ -4,7 +4,9 @@ Paper, section "A synthetic dataset": 1-3 objects placed near the scene centre o
 floor, never overlapping, each with a diffuse BSDF of random colour and roughness (the
 paper: one colour "for each mesh texture in each object"; ``object_parts`` cuts each
 procedural object into that many independently coloured parts); a
-multi-sided room with flat textures on the walls; a point light at r in [20, 50] m,
+multi-sided room with flat textures on the walls (``backgrounds``: ``patterns``, 2-5
+colours per texture, or ``mosaic``, grids of 16-256 cells coloured independently: many
+surfaces in view); a point light at r in [20, 50] m,
 tilt in [30, 90] deg in steps of 5, pan in [0, 360) deg in steps of 1, colour near the
 Planckian locus; the camera at r = 20 m, pan 0, tilt in [10, 70] deg, looking at the
 centre.
@@ -50,6 +52,7 @@ class GeneratorConfig:
     target_rmse: float = noise.DEFAULT_TARGET_RMSE   # relative RMSE target (used when spp is None)
     sampler: str = noise.DEFAULT_SAMPLER             # Mitsuba sampler plugin
     colour_prior: str = albedo.DEFAULT_PRIOR         # surface-colour prior (relight.scene.albedo)
+    backgrounds: str = "patterns"                    # wall/floor textures (textures.BACKGROUNDS)
     max_depth: int = 4
     fov_deg: float = 40.0
     camera_r_m: float = 20.0
@@ -86,6 +89,9 @@ class GeneratorConfig:
         if self.colour_prior not in albedo.PRIORS:
             raise ConfigError(f"colour_prior: expected one of {', '.join(albedo.PRIORS)}, "
                               f"got {self.colour_prior!r}")
+        if self.backgrounds not in textures.BACKGROUNDS:
+            raise ConfigError(f"backgrounds: expected one of {', '.join(textures.BACKGROUNDS)}, "
+                              f"got {self.backgrounds!r}")
         if self.spp is None:
             try:
                 noise.spp_for_target(self.target_rmse, self.sampler)
@@ -137,7 +143,8 @@ class GeneratorConfig:
 
 # Settings added after the first datasets, with the value every dataset made before the
 # setting existed used: a card without the key means that value (never today's default).
-LEGACY_CONFIG: dict = {"sampler": LEGACY_SAMPLER, "colour_prior": "hsv", "object_parts": [1, 1]}
+LEGACY_CONFIG: dict = {"sampler": LEGACY_SAMPLER, "colour_prior": "hsv", "object_parts": [1, 1],
+                       "backgrounds": "patterns"}
 
 
 def mesh_files(mesh_dir: str) -> list[str]:
@@ -202,13 +209,14 @@ def sample_scene(cfg: GeneratorConfig, dataset_seed: int, index: int) -> SceneSp
 
     n_walls = int(rng.integers(cfg.n_walls[0], cfg.n_walls[1] + 1))
     prior = albedo.scene_prior(rng, cfg.colour_prior)
+    kind = textures.MOSAIC if cfg.backgrounds == textures.MOSAIC else None
     room = RoomSpec(
         n_walls=n_walls,
         inradius_m=float(np.round(rng.uniform(*cfg.room_inradius_m), 3)),
         height_m=cfg.wall_height_m,
         rotation_deg=float(np.round(rng.uniform(0.0, 360.0 / n_walls), 3)),
-        wall_textures=tuple(textures.sample_texture_params(rng, prior=prior) for _ in range(n_walls)),
-        floor_texture=textures.sample_texture_params(rng, prior=prior),
+        wall_textures=tuple(textures.sample_texture_params(rng, kind, prior) for _ in range(n_walls)),
+        floor_texture=textures.sample_texture_params(rng, kind, prior),
         texture_res=cfg.texture_res)
 
     families = cfg.families or shapes.FAMILIES

@@ -14,7 +14,7 @@ Conventions
 * ``params`` fully determines the image: all randomness comes from
   ``np.random.default_rng(params["seed"])`` (phases, patch rectangles, noise
   lattices, dot jitter, per-tile variation), so the same params and size give
-  bit-identical output.  The gradient kind does not use its seed.
+  bit-identical output.  The gradient and mosaic kinds do not use their seed.
 * Everything is vectorised without BLAS calls (whose threads stall on a busy
   machine); make_texture(params, 256) takes about 1-3 ms.
 """
@@ -27,6 +27,10 @@ import numpy as np
 from relight.scene.albedo import ALBEDO_MAX, ALBEDO_MIN, texture_colours
 
 KINDS: tuple[str, ...] = ("checker", "stripes", "patches", "noise", "gradient", "dots", "tiles")
+MOSAIC = "mosaic"   # a grid of cells, each with its own colour from the prior (--backgrounds mosaic)
+ALL_KINDS: tuple[str, ...] = KINDS + (MOSAIC,)
+BACKGROUNDS: tuple[str, ...] = ("patterns", MOSAIC)   # generator setting: KINDS, or mosaics only
+MOSAIC_CELLS = (4, 16)   # rows and columns of a sampled mosaic (drawn independently)
 
 
 # --------------------------------------------------------------------------- params
@@ -61,13 +65,20 @@ def _colours(params: dict, n_min: int, n_max: int) -> np.ndarray:
 
 
 def sample_texture_params(rng: np.random.Generator, kind: str | None = None, prior: str = "hsv") -> dict:
-    """Random JSON-serialisable texture params; ``kind`` None picks one of KINDS;
-    colours from the surface-colour ``prior`` (:mod:`relight.scene.albedo`)."""
+    """Random JSON-serialisable texture params; ``kind`` None picks one of KINDS (the
+    patterns: 2-5 colours around one hue); colours from the surface-colour ``prior``
+    (:mod:`relight.scene.albedo`). ``kind`` ``"mosaic"``: 4-16 x 4-16 cells, each colour drawn
+    on its own (independent surfaces)."""
     if kind is None:
         kind = str(rng.choice(KINDS))
-    if kind not in KINDS:
-        raise ValueError(f"unknown texture kind {kind!r}, expected one of {KINDS}")
+    if kind not in ALL_KINDS:
+        raise ValueError(f"unknown texture kind {kind!r}, expected one of {ALL_KINDS}")
     p: dict = {"kind": kind, "seed": int(rng.integers(0, 2**31 - 1))}
+    if kind == MOSAIC:
+        rows, cols = (int(n) for n in rng.integers(MOSAIC_CELLS[0], MOSAIC_CELLS[1] + 1, 2))
+        p.update(rows=rows, cols=cols,
+                 colors=[texture_colours(rng, 1, prior)[0] for _ in range(rows * cols)])
+        return p
 
     def _colours_of(n: int) -> list[list[float]]:
         return texture_colours(rng, n, prior)
@@ -245,20 +256,27 @@ def _tiles(p: dict, size: int, rng: np.random.Generator) -> np.ndarray:
     return np.where(is_grout[..., None], col[0], tile_col[ry, rx % cols])
 
 
-_PATTERNS = {"checker": _checker, "stripes": _stripes, "patches": _patches, "noise": _noise,
+def _mosaic(p: dict, size: int, rng: np.random.Generator) -> np.ndarray:
+    rows, cols = _int(p, "rows", 1, 64), _int(p, "cols", 1, 64)
+    col = _colours(p, rows * cols, rows * cols)   # row-major, row 0 at the top
+    x, y = _grid(size)
+    return col.reshape(rows, cols, 3)[(y * rows).astype(np.int64), (x * cols).astype(np.int64)]
+
+
+_PATTERNS = {"mosaic": _mosaic, "checker": _checker, "stripes": _stripes, "patches": _patches, "noise": _noise,
              "gradient": _gradient, "dots": _dots, "tiles": _tiles}
 
 
 def make_texture(params: dict, size: int) -> np.ndarray:
     """Render ``params`` to a (size, size, 3) float32 linear-RGB albedo image in [0, 1].
 
-    Raises ValueError for an unknown kind (listing KINDS), bad params or size.
+    Raises ValueError for an unknown kind (listing ALL_KINDS), bad params or size.
     """
     if not isinstance(params, dict):
         raise ValueError(f"texture params must be a dict, got {type(params).__name__}")
     kind = params.get("kind")
-    if kind not in KINDS:
-        raise ValueError(f"unknown texture kind {kind!r}, expected one of {KINDS}")
+    if kind not in ALL_KINDS:
+        raise ValueError(f"unknown texture kind {kind!r}, expected one of {ALL_KINDS}")
     seed = params.get("seed")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"texture {kind!r}: 'seed' must be a non-negative int, got {seed!r}")
