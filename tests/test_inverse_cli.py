@@ -82,11 +82,21 @@ def test_invert_bad_inputs(dataset, tmp_path, capsys):
 
 
 @pytest.mark.parametrize("name", ["gray-world", "white-patch", "shades-of-gray", "gray-edge"])
-def test_baseline_command(dataset, tmp_path, name):
+def test_baseline_command(dataset, tmp_path, name, capsys):
+    import re
+
+    from relight.dataset import read_manifest
     from relight.inverse.colour_baselines import read_colour_predictions
+    from relight.metrics import colour_error_deg
     out = tmp_path / f"{name}.json"
     assert main(["baseline", name, "--data", str(dataset), "--split", "all", "--out", str(out)]) == 0
     got = read_colour_predictions(out)
     assert len(got) == N_IMAGES
     assert all(np.isclose(np.linalg.norm(v), 1.0) and (v >= 0).all() for v in got.values())
     assert json.loads(out.read_text())["method"] == name
+    # the printed colour error is the file's estimates against the manifest's lights
+    truth = {r["id"]: r["light"]["rgb"] for r in read_manifest(dataset)}
+    err = [float(colour_error_deg(v, truth[k])) for k, v in got.items()]
+    m = re.search(r"mean (\d+\.\d\d), median (\d+\.\d\d) degrees", capsys.readouterr().out)
+    assert m and float(m.group(1)) == pytest.approx(np.mean(err), abs=0.006)
+    assert float(m.group(2)) == pytest.approx(np.median(err), abs=0.006)

@@ -96,7 +96,9 @@ def cmd_invert(args) -> int:
 
 
 def cmd_baseline(args) -> int:
-    from relight.inverse.colour_baselines import estimate_jobs, write_colour_predictions
+    import numpy as np
+
+    from relight.inverse.colour_baselines import dataset_colour_errors, estimate_jobs, write_colour_predictions
     from relight.fileio import check_file_target, check_outputs
     check_outputs([args.out], [args.data])
     check_file_target(args.out)
@@ -104,5 +106,8 @@ def cmd_baseline(args) -> int:
     check_outputs([args.out], [j.image_path for j in jobs] + [j.scene_path for j in jobs])
     entries = estimate_jobs(args.name, jobs, scheduler=args.scheduler)
     write_colour_predictions(args.out, entries, dataset=os.path.abspath(args.data), method=args.name)
-    print(f"{args.out}: {len(entries)} colour estimates ({args.name}, colour only)")
+    err = dataset_colour_errors(entries, args.data)
+    known = (f"; colour error against the lights of {len(err)}: mean {err.mean():.2f}, median "
+             f"{np.median(err):.2f} degrees") if len(err) else ""
+    print(f"{args.out}: {len(entries)} colour estimates ({args.name}, colour only){known}")
     return 0

@@ -140,6 +140,19 @@ def estimate_jobs(name: str, jobs: list, progress: bool = True, scheduler=None) 
                               bar=len(paths) >= 50, mitsuba=False)
 
 
+def dataset_colour_errors(entries: list[dict], data_dir: str) -> np.ndarray:
+    """Colour error in degrees (:func:`relight.metrics.colour_error_deg`) of each entry
+    ``{"id", "rgb"}`` whose record in ``data_dir``'s manifest has a light colour, in entry
+    order (empty when none has)."""
+    from relight.dataset import read_manifest
+    from relight.metrics import colour_error_deg
+    truth = {r["id"]: (r.get("light") or {}).get("rgb") for r in read_manifest(data_dir)}
+    known = [e for e in entries if truth.get(e["id"]) is not None]
+    if not known:
+        return np.zeros(0)
+    return colour_error_deg([e["rgb"] for e in known], [truth[e["id"]] for e in known])
+
+
 def _entry(name: str, image_id: str, image_path: str) -> dict:
     from relight.imageio import read_image
     return {"id": image_id, "rgb": [float(c) for c in estimate(name, read_image(image_path)[0])]}
