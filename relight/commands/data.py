@@ -6,8 +6,8 @@ import sys
 
 from relight.commands import argtypes as at
 from relight.scene.albedo import PRIORS
-from relight.scene.textures import BACKGROUNDS
 from relight.scene.spec import SAMPLERS
+from relight.scene.textures import BACKGROUNDS
 
 
 def add_commands(sub) -> None:
