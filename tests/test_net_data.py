@@ -15,15 +15,16 @@ from relight.net.evaluate import decode_outputs
 ANGLE_TOL_DEG = 1e-9
 
 
-def _fake_dataset(root, n=6, res=24):
-    """A dataset folder with synthetic images (a left-right ramp) and true 7-vectors."""
+def _fake_dataset(root, n=6, res=24, green0=0):
+    """A dataset folder with synthetic images (a left-right ramp, green ``green0 + 10 * index``)
+    and true 7-vectors."""
     os.makedirs(os.path.join(root, "images"))
     rng = np.random.default_rng(0)
     with open(os.path.join(root, "manifest.jsonl"), "w") as f:
         for i in range(n):
             img = np.zeros((res, res, 3), np.uint8)
             img[..., 0] = np.linspace(0, 255, res, dtype=np.uint8)[None, :]  # red ramps left -> right
-            img[..., 1] = 10 * i
+            img[..., 1] = green0 + 10 * i
             Image.fromarray(img).save(os.path.join(root, "images", f"{i:06d}.png"))
             pan_l, tilt_l, tilt_c = float(rng.integers(0, 360)), float(rng.integers(6, 18) * 5), 40.0
             rgb = [0.6, 0.58, 0.55]
@@ -122,3 +123,44 @@ def test_unknown_split_and_missing_image(fake, tmp_path):
         ds[0]
     with pytest.raises(DatasetError):
         LightDataset(tmp_path, "train")
+
+
+def test_several_folders_join_their_splits(fake, tmp_path):
+    # Two folders with the same record ids (every dataset numbers from 000000): items
+    # follow the folders' order and each image comes from its own folder.
+    other = _fake_dataset(str(tmp_path / "other"), n=4, green0=100)
+    both = LightDataset([fake, other], "train", res=24)
+    one, two = LightDataset(fake, "train", res=24), LightDataset(other, "train", res=24)
+    assert len(both) == len(one) + len(two) == 5 + 3 and both.part_sizes() == [5, 3]
+    for i in range(len(both)):
+        x, y, _ = both[i]
+        want_x, want_y, _ = one[i] if i < len(one) else two[i - len(one)]
+        assert torch.equal(x, want_x) and torch.equal(y, want_y)
+    assert both[5][0][1, 0, 0].item() == pytest.approx(100 / 255)   # other's first image, not fake's
+    assert both.truth()["id"][5] == "000000"
+    assert len(LightDataset([fake, other], "val", res=24)) == 2
+
+
+def test_several_folders_refresh_and_agree_per_folder(tmp_path):
+    a = _fake_dataset(str(tmp_path / "a"), n=4)
+    b = _fake_dataset(str(tmp_path / "b"), n=4, green0=100)
+    ds = LightDataset([a, b], "all", res=24)
+    ds.keep_first([2, 3])   # what processes that read growing manifests agree on
+    assert ds.part_sizes() == [2, 3] and [r["id"] for r in ds.records] == ["000000", "000001", "000000",
+                                                                          "000001", "000002"]
+    assert ds[2][0][1, 0, 0].item() == pytest.approx(100 / 255)
+    with open(os.path.join(a, "manifest.jsonl")) as f:   # folder a grows: b's records keep their images
+        first = f.readline()
+    with open(os.path.join(a, "manifest.jsonl"), "a") as f:
+        f.write(first.replace('"000000"', '"000099"'))
+    assert ds.refresh() == 5 + 4 and ds.part_sizes() == [5, 4]
+    assert ds[5][0][1, 0, 0].item() == pytest.approx(100 / 255)
+    twin = ds.unaugmented()
+    assert len(twin) == len(ds) and not twin.flip
+
+
+def test_same_folder_twice_is_refused(fake):
+    with pytest.raises(DatasetError, match="twice"):
+        LightDataset([fake, os.path.join(fake, ".")], "train")
+    with pytest.raises(DatasetError, match="no dataset folder"):
+        LightDataset([], "train")

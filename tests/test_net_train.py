@@ -355,3 +355,30 @@ def test_float16_model_file_is_half_the_size_and_predicts_alike(tmp_path):
         (ya, ka), (yb, kb) = a.forward_with_kappa(x), b.forward_with_kappa(x)
     assert torch.allclose(ya, yb, atol=5e-3) and not torch.equal(ya, yb)
     assert torch.allclose(ka, kb, rtol=2e-2)
+
+
+def test_training_on_two_folders_joins_them(tiny, tmp_path, capsys):
+    # A copy of the dataset as a second folder: each epoch sees both train splits, the
+    # val loss covers both val splits, and the identical command resumes the run.
+    from relight.net.data import LightDataset
+    twin = str(tmp_path / "twin")
+    shutil.copytree(tiny, twin)
+    argv = ["train", "--data", tiny, "--data", twin, "--epochs", "1", "--batch-size", "4", "--res", str(RES),
+            "--width", "8", "--quiet", "--out", str(tmp_path / "run")]
+    assert main(argv) == 0
+    rows = list(csv.DictReader(open(tmp_path / "run" / "log.csv")))
+    one_train, one_val = len(LightDataset(tiny, "train", RES)), len(LightDataset(tiny, "val", RES))
+    assert int(rows[0]["n_train"]) == 2 * one_train and int(rows[0]["n_val"]) == 2 * one_val
+    settings = json.load(open(tmp_path / "run" / "settings.json"))
+    assert settings["data_dir"] == [tiny, twin]
+    assert load_model_file(tmp_path / "run").info["data_dir"] == [os.path.abspath(tiny), os.path.abspath(twin)]
+    before = (tmp_path / "run" / "checkpoint.pt").read_bytes()
+    assert main(argv) == 0   # the identical command: already trained, nothing rewritten
+    assert (tmp_path / "run" / "checkpoint.pt").read_bytes() == before
+    capsys.readouterr()
+    # the same folders in another order are another run; one folder twice is refused
+    assert main(argv[:2] + [twin, "--data", tiny] + argv[5:]) == 2
+    assert "other settings" in capsys.readouterr().err
+    assert main(argv[:4] + [tiny] + argv[5:-1] + [str(tmp_path / "run2")]) == 2
+    err = capsys.readouterr().err
+    assert "twice" in err and len(err.strip().splitlines()) == 1 and not (tmp_path / "run2").exists()

@@ -11,7 +11,9 @@ def add_commands(sub) -> None:
     t = sub.add_parser("train", help="train the light regression network on a dataset (resumable)",
                        description="Train the paper's network (Adam, ReduceLROnPlateau x0.1 on val loss) "
                                    "on the train split of DATA; the val split drives the scheduler.")
-    t.add_argument("--data", required=True, help="dataset folder (relight generate output)")
+    t.add_argument("--data", required=True, action="append",
+                   help="dataset folder (relight generate output); repeat it to train on several "
+                        "folders together (their train and val splits are joined)")
     t.add_argument("--out", required=True, help="run folder (checkpoints, log.csv, curves.png, settings.json)")
     t.add_argument("--epochs", type=at.epochs, default=10, help="total epochs (default 10)")
     t.add_argument("--batch-size", type=at.batch_size, default=16, help="batch size (default 16, the paper's)")
@@ -91,9 +93,9 @@ def cmd_train(args) -> int:
     import dataclasses
     from relight.fileio import check_folder_target, check_outputs
     from relight.net.train import TrainConfig, train
-    check_outputs([args.out], [args.data, args.init])
+    check_outputs([args.out], [*args.data, args.init])
     check_folder_target(args.out)
-    cfg = TrainConfig(data_dir=args.data, init=os.path.abspath(args.init) if args.init else None,
+    cfg = TrainConfig(data_dir=tuple(args.data), init=os.path.abspath(args.init) if args.init else None,
                       image_key="image_masked" if args.images == "masked" else "image",
                       epochs=args.epochs, batch_size=args.batch_size, lr=float(args.lr),
                       res=args.res, seed=args.seed, flip=not args.no_flip, plateau_patience=args.patience,

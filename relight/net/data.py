@@ -14,6 +14,7 @@ pan relative to the camera becomes ``360 - pan_rel``; in the 7-vector
 """
 from __future__ import annotations
 
+import copy
 import os
 
 import numpy as np
@@ -66,46 +67,84 @@ def _read_png_srgb8(path: str) -> np.ndarray:
         raise DatasetError(f"dataset image: {exc}") from None
 
 
-class LightDataset(Dataset):
-    """Images and 7-vector targets of one split of a dataset folder.
+def dataset_folders(data_dir) -> list[str]:
+    """``data_dir`` (one folder, or a sequence of folders trained on together) as a list."""
+    if isinstance(data_dir, (str, os.PathLike)):
+        return [os.fspath(data_dir)]
+    folders = [os.fspath(d) for d in data_dir]
+    if not folders:
+        raise DatasetError("no dataset folder given")
+    if len({os.path.realpath(d) for d in folders}) != len(folders):
+        raise DatasetError(f"a dataset folder is given twice: {', '.join(folders)}")
+    return folders
 
-    Items are ``(image (3, res, res) float32, y (7,) float32, index)``. With
-    ``flip=True`` each item is mirrored with probability 1/2, decided by
-    ``(seed, epoch, index)`` alone (set :attr:`epoch` each epoch), so a resumed run
-    sees the same augmentation. Decoded images are cached in memory as uint8
-    (``res * res * 3`` bytes each) when ``cache`` is true.
+
+class LightDataset(Dataset):
+    """Images and 7-vector targets of one split of one or several dataset folders.
+
+    Items are ``(image (3, res, res) float32, y (7,) float32, index)``. With several
+    folders (e.g. rooms with pattern and with mosaic backgrounds) the split's records of
+    each folder follow one another, in the order given. With ``flip=True`` each item is
+    mirrored with probability 1/2, decided by ``(seed, epoch, index)`` alone (set
+    :attr:`epoch` each epoch), so a resumed run sees the same augmentation. Decoded
+    images are cached in memory as uint8 (``res * res * 3`` bytes each) when ``cache``
+    is true.
     """
 
-    def __init__(self, data_dir: str | os.PathLike, split: str = "train", res: int = 128,
+    def __init__(self, data_dir, split: str = "train", res: int = 128,
                  flip: bool = False, seed: int = 0, cache: bool = True, records: list[dict] | None = None,
                  image_key: str = "image"):
-        self.data_dir = os.fspath(data_dir)
+        self.data_dirs = dataset_folders(data_dir)
+        self.data_dir = self.data_dirs[0]
+        if records is not None and len(self.data_dirs) > 1:
+            raise ValueError("records= needs a single dataset folder")
         self.image_key = image_key   # the record field naming the image ("image_masked": MID-like, spheres out)
         self.split = split
-        self.records = split_records(read_manifest(self.data_dir) if records is None else records, split)
         self.res, self.flip, self.seed, self.cache = res, flip, seed, cache
         self.epoch = 0
-        self._cache: dict[str, np.ndarray] = {}
+        self._cache: dict[tuple[int, str], np.ndarray] = {}
+        self._set_parts([split_records(read_manifest(d) if records is None else records, split)
+                         for d in self.data_dirs])
+
+    def _set_parts(self, parts: list[list[dict]]) -> None:
+        self._parts = parts
+        self.records = [rec for part in parts for rec in part]
+        self._folder = [k for k, part in enumerate(parts) for _ in part]
 
     def __len__(self) -> int:
         return len(self.records)
 
+    def part_sizes(self) -> list[int]:
+        """Number of records taken from each folder, in folder order."""
+        return [len(part) for part in self._parts]
+
+    def keep_first(self, sizes) -> None:
+        """Keep only the first ``sizes[k]`` records of folder ``k`` (processes that read
+        a growing manifest at different moments agree on this prefix)."""
+        self._set_parts([part[:int(n)] for part, n in zip(self._parts, sizes)])
+
     def refresh(self) -> int:
-        """Re-read the manifest (a dataset still being generated grows); returns new size.
-        Records keep their file order, so earlier indices are unchanged."""
-        self.records = split_records(read_manifest(self.data_dir), self.split)
+        """Re-read the manifests (a dataset still being generated grows); returns new size.
+        Records keep their file order, so each folder's earlier records are unchanged."""
+        self._set_parts([split_records(read_manifest(d), self.split) for d in self.data_dirs])
         return len(self.records)
+
+    def unaugmented(self) -> LightDataset:
+        """The same records without flip augmentation (shares the image cache)."""
+        twin = copy.copy(self)
+        twin.flip = False
+        return twin
 
     def image_srgb8(self, i: int) -> np.ndarray:
         """The record's image at network size, ``(res, res, 3)`` uint8 (cached)."""
-        rec = self.records[i]
-        key = rec["id"]
+        rec, folder = self.records[i], self._folder[i]
+        key = (folder, rec["id"])
         img = self._cache.get(key)
         if img is None:
             if not isinstance(rec.get(self.image_key), str):
-                raise DatasetError(f"record {key!r} has no {self.image_key!r} image (only MID-like datasets "
+                raise DatasetError(f"record {rec['id']!r} has no {self.image_key!r} image (only MID-like datasets "
                                    "have masked copies)")
-            raw = _read_png_srgb8(safe_join(self.data_dir, rec[self.image_key]))
+            raw = _read_png_srgb8(safe_join(self.data_dirs[folder], rec[self.image_key]))
             img = (prepare_srgb8(raw, self.res).numpy().transpose(1, 2, 0) * 255.0 + 0.5).astype(np.uint8)
             if self.cache:
                 self._cache[key] = img

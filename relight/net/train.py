@@ -39,7 +39,7 @@ import torch
 from relight.dataset import DatasetError
 from relight.errors import TrainingError
 from relight.fileio import FolderLock, atomic_write, write_json
-from relight.net.data import LightDataset
+from relight.net.data import LightDataset, dataset_folders
 from relight.net.evaluate import errors_from_y, run_model
 from relight.net.io import save_model
 from relight.net.loss import LossWeights, light_loss
@@ -60,7 +60,8 @@ class TrainConfig:
     """Settings of one training run (written to ``settings.json``).
 
     Attributes:
-        data_dir: dataset folder (``relight generate`` output).
+        data_dir: dataset folder (``relight generate`` output), or a tuple of folders
+            trained on together (their splits joined; e.g. two background styles).
         epochs: total number of epochs (a resumed run continues up to it).
         batch_size, lr: the paper's 16 and 2e-4.
         res: network input size in pixels.
@@ -86,7 +87,7 @@ class TrainConfig:
             (minutes from the start of this invocation; None: no limit). A later
             ``resume`` continues from there.
     """
-    data_dir: str
+    data_dir: str | tuple[str, ...]
     epochs: int = 10
     batch_size: int = 16
     lr: float = 2e-4
@@ -108,6 +109,8 @@ class TrainConfig:
     image_key: str = "image"
 
     def __post_init__(self):
+        folders = tuple(dataset_folders(self.data_dir))   # one folder stays a plain string (older runs)
+        object.__setattr__(self, "data_dir", folders[0] if len(folders) == 1 else folders)
         for name in ("epochs", "batch_size", "res", "threads"):
             v = getattr(self, name)
             if not isinstance(v, int) or v < 1:
@@ -130,6 +133,10 @@ class TrainConfig:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+def _abspaths(data_dir):
+    return os.path.abspath(data_dir) if isinstance(data_dir, str) else [os.path.abspath(d) for d in data_dir]
 
 
 def _check_resume_compatible(saved: dict, cfg: TrainConfig) -> None:
@@ -236,9 +243,9 @@ def _ddp_agree(dataset: LightDataset) -> None:
     """Under DDP, keep the records every process has read (a growing manifest may be
     read at slightly different moments; records keep file order, so a prefix agrees)."""
     import torch.distributed as dist
-    n = torch.tensor([len(dataset.records)])
-    dist.all_reduce(n, op=dist.ReduceOp.MIN)
-    dataset.records = dataset.records[:int(n)]
+    sizes = torch.tensor(dataset.part_sizes())
+    dist.all_reduce(sizes, op=dist.ReduceOp.MIN)
+    dataset.keep_first(sizes.tolist())
 
 
 def train(cfg: TrainConfig, out_dir: str | os.PathLike, resume: bool = False, progress: bool = True) -> dict:
@@ -332,7 +339,7 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, 
     if ddp is not None:
         _ddp_agree(train_set), _ddp_agree(val_set)
     if len(train_set) == 0:
-        raise DatasetError(f"{cfg.data_dir}: no records in split {cfg.train_split!r}")
+        raise DatasetError(f"{', '.join(dataset_folders(cfg.data_dir))}: no records in split {cfg.train_split!r}")
 
     state = _load_checkpoint(ckpt_path) if resume and os.path.exists(ckpt_path) else None
     if state is not None:
@@ -356,9 +363,7 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, 
     settings = cfg.to_dict() | {"out_dir": out_dir, "parameters": count_parameters(model)}
     if init_model is not None:   # the starting point: the loaded model's val loss before any step
         if state is None:
-            start_set = val_set if len(val_set) else LightDataset(cfg.data_dir, cfg.train_split, cfg.res,
-                                                                  records=train_set.records,
-                                                                  image_key=cfg.image_key)
+            start_set = val_set if len(val_set) else train_set.unaugmented()
             settings["init_val_loss"] = _dataset_loss(model, start_set, cfg)
         else:
             try:
@@ -391,9 +396,7 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, 
             train_set.refresh(), val_set.refresh()
             if ddp is not None:
                 _ddp_agree(train_set), _ddp_agree(val_set)
-        evaluation_set = val_set if len(val_set) else LightDataset(cfg.data_dir, cfg.train_split, cfg.res,
-                                                                   records=train_set.records,
-                                                                   image_key=cfg.image_key)
+        evaluation_set = val_set if len(val_set) else train_set.unaugmented()
         train_set.epoch = epoch
         if ddp is None:
             sampler = _epoch_order(len(train_set), cfg.seed, epoch)
@@ -450,7 +453,7 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, 
         rows.append(row)
         if not writer:
             continue
-        info = {"epoch": epoch + 1, "val_loss": val_loss, "data_dir": os.path.abspath(cfg.data_dir),
+        info = {"epoch": epoch + 1, "val_loss": val_loss, "data_dir": _abspaths(cfg.data_dir),
                 "n_train": seen, "settings": cfg.to_dict(),
                 **({"kappa_temperature": calibration["kappa_temperature"]} if calibration else {})}
         save_model(os.path.join(out_dir, "last.safetensors"), model, info)
