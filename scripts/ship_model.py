@@ -143,7 +143,17 @@ def architecture_text(config) -> str:
     return head + ":\n" + "\n".join(f"  {ln}" for ln in lines)
 
 
-def train_command(s: dict, data_path: str, epochs: int | None = None, out: str = "RUN",
+def data_options(data_path) -> str:
+    """``--data A`` for one training folder, ``--data A --data B`` for several."""
+    return " ".join(f"--data {p}" for p in ([data_path] if isinstance(data_path, str) else data_path))
+
+
+def data_label(data_path) -> str:
+    """One folder, or several joined with ``+``, for the card's prose."""
+    return data_path if isinstance(data_path, str) else " + ".join(data_path)
+
+
+def train_command(s: dict, data_path, epochs: int | None = None, out: str = "RUN",
                   init: str | None = None) -> str:
     """The ``relight train`` command of a run's settings (``settings.json`` / model info):
     options that differ from the defaults, the architecture and the kappa options always.
@@ -151,7 +161,7 @@ def train_command(s: dict, data_path: str, epochs: int | None = None, out: str =
     schedule never looks at the total, so ``--epochs N`` repeats those N epochs). ``init``:
     how to name the ``--init`` model of a fine-tuning run (default its recorded path)."""
     w = s["loss_weights"]
-    opts = [f"--data {data_path}", f"--out {out}", f"--epochs {epochs or s['epochs']}",
+    opts = [data_options(data_path), f"--out {out}", f"--epochs {epochs or s['epochs']}",
             f"--patience {s['plateau_patience']}"]
     if s.get("init"):
         opts.append(f"--init {init or s['init']}")
@@ -209,27 +219,35 @@ def earlier_stages(settings: dict) -> list[dict]:
     raise SystemExit(f"{path}: the model it was fine-tuned from ({previous}) is gone and no record of it is kept")
 
 
-def ship(run: str, train_data: str, model_path: str | None = None, models_dir: str = MODELS_DIR) -> dict:
+def _dataset_record(path: str) -> dict:
+    card = read_card(path)
+    return {"path": path, "seed": card["seed"], "config": card["config"], "spp": card.get("spp"),
+            "records": len(read_manifest(path))}
+
+
+def ship(run: str, train_data, model_path: str | None = None, models_dir: str = MODELS_DIR) -> dict:
+    """Ship RUN's best model (or ``model_path``) with its record; ``train_data``: the folder
+    the run trained on, or a list of the folders it trained on together."""
+    folders = [train_data] if isinstance(train_data, str) else list(train_data)
     config, state, info = read_model_file(model_path or os.path.join(run, "best.safetensors"))
     rows = list(csv.DictReader(open(os.path.join(run, "log.csv"))))
     best = int(info["epoch"])
     model = LightNet(config)
     model.load_state_dict(state)
-    card = read_card(train_data)
+    datasets = [_dataset_record(path) for path in folders]
     meta = {"name": SHIPPED_NAME, "arch": config.arch_name, "config": config.to_dict(),
             "parameters": count_parameters(model), "gflop_per_image": flops_per_image(model) / 1e9,
             "trained_epochs_total": len(rows), "best_epoch": best, "best_val_loss": info["val_loss"],
             "train_images_per_epoch": [int(rows[0]["n_train"]), int(rows[-1]["n_train"])],
             "train_time_s_all_epochs": sum(float(r["epoch_time_s"]) for r in rows),
             "train_time_s_to_best": sum(float(r["epoch_time_s"]) for r in rows[:best]),
-            "train_dataset": {"path": train_data, "seed": card["seed"], "config": card["config"], "spp": card.get("spp"),
-                              "records": len(read_manifest(train_data))},
+            "train_dataset": datasets[0], "train_datasets": datasets if len(datasets) > 1 else None,
             "settings": info["settings"], "run": run, "kappa_temperature": info.get("kappa_temperature"),
             "kappa_calibration": info.get("kappa_calibration"), "models_dir": models_dir,
             "stages": earlier_stages(info["settings"])}
     save_model(os.path.join(models_dir, os.path.basename(SHIPPED_MODEL)), model,
                {k: meta[k] for k in ("name", "best_epoch", "best_val_loss", "settings", "train_dataset",
-                                     "kappa_temperature", "kappa_calibration", "stages") if meta[k] not in (None, [])},
+                                     "train_datasets", "kappa_temperature", "kappa_calibration", "stages") if meta[k] not in (None, [])},
                dtype=SHIPPED_DTYPE)
     _copy(os.path.join(run, "log.csv"), os.path.join(models_dir, f"{SHIPPED_NAME}_log.csv"))
     write_json(os.path.join(models_dir, f"{SHIPPED_NAME}.json"), meta)
@@ -264,7 +282,7 @@ def _fine_tune_why(before: dict, after: dict, default_data: str) -> str:
     """How a stage follows the one before it (training settings of both)."""
     head = f"fine-tunes the previous stage's best model (`--init`) at lr {after['lr']:g}"
     if after.get("data_dir", default_data) != before.get("data_dir", default_data):
-        return f"{head} on other data (`{after.get('data_dir', default_data)}`)"
+        return f"{head} on other data (`{data_label(after.get('data_dir', default_data))}`)"
     return (f"{head}, a learning-rate drop made by hand where the plateau schedule would wait for "
             f"{before['plateau_patience'] + 1} epochs without a better val loss")
 
@@ -304,8 +322,10 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
     unfinished = len(rows) < int(s["epochs"])
     stages = meta.get("stages") or ([meta["base"]] if meta.get("base") else [])   # "base": cards before chains
     td = meta["train_dataset"]
-    final_data = s.get("data_dir", td["path"])
-    train_cmd_line = train_command(s, td["path"], len(rows) if unfinished else None,
+    tds = meta.get("train_datasets") or [td]   # the final stage's folders (one, or several trained together)
+    td_paths = td["path"] if len(tds) == 1 else [d["path"] for d in tds]
+    final_data = s.get("data_dir", td_paths)
+    train_cmd_line = train_command(s, td_paths, len(rows) if unfinished else None,
                                    init=f"STAGE{len(stages)}/best.safetensors" if stages else None)
     stage_text, stage_lines = "", ""
     chain = [st["settings"] for st in stages] + [s]
@@ -327,15 +347,15 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
                    f"`--epochs {s['epochs']}` the same command continues the run.")
     drops = [f"{float(r['lr']):.0e} after epoch {r['epoch']}" for i, r in enumerate(rows)
              if i and float(r["lr"]) != float(rows[i - 1]["lr"])]
-    train_card = {"seed": td["seed"], "config": td["config"], "spp": td.get("spp")}
-    train_cfg = dataset_settings(train_card)
     datasets = {}   # every stage's training data, in order of first use: path -> card (as in the model)
     for st in stages:
         d = st.get("train_dataset")
         path = st["settings"].get("data_dir") or (d or td)["path"]
         if datasets.get(path) is None:
             datasets[path] = d
-    datasets[td["path"]] = td
+    for d in tds:
+        datasets.pop(d["path"], None)   # the final stage's folders come last
+        datasets[d["path"]] = d
     data_lines = []
     for path, d in datasets.items():
         if d is None:   # a stage shipped before models kept their data card
@@ -343,9 +363,10 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
             continue
         data_lines.append(generate_command({"seed": d["seed"], "config": d["config"], "spp": d.get("spp")}, path,
                                            d["records"]))
+    n_final = len(tds)
     earlier_data = "".join(f"- Earlier stages: `{cmd}`{(' (' + note + ')') if note else ''}\n"
-                           for cmd, note in data_lines[:-1])
-    train_cmd, train_note = data_lines[-1]
+                           for cmd, note in data_lines[:-n_final])
+    final_lines = data_lines[-n_final:]
     test_card = read_card(test_data)
     test_cmd, test_note = generate_command(test_card, test_data, len(read_manifest(test_data)))
     table1 = "\n".join(f"| {m.capitalize()} | {PAPER[m]:.2f} | {overall[m]['mean']:.2f} | "
@@ -379,7 +400,11 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
         priors = ("\n## Colour error per surface-colour prior\n"
                   "The shipped model on a test set of each prior (`relight generate --colour-prior NAME`, all "
                   "images; degrees):\n\n" + prior_rows(prior_evals) + "\n")
-    data_text = f"{settings_text(train_card)}, depth {train_cfg['max_depth']}"
+    final_data_text = "".join(
+        f"- `{cmd}`{(' (' + note + ')') if note else ''}\n  ({settings_text(d)}, depth {dataset_settings(d)['max_depth']})\n"
+        for (cmd, note), d in zip(final_lines, tds))
+    splits = ("The dataset's `train` split" if n_final == 1 else
+              f"The `train` splits of these {n_final} datasets, joined")
     card = f"""# Model card: `{SHIPPED_NAME}.safetensors`
 
 The paper's regression network (Sial et al., "Light Direction and Color Estimation from
@@ -400,10 +425,9 @@ dataset made by `relight generate`. It is the default model of `relight predict`
   header and in `{SHIPPED_NAME}.json`; training log `{SHIPPED_NAME}_log.csv`.
 
 ## Training data
-{earlier_data}- `{train_cmd}`{(' (' + train_note + ')') if train_note else ''}
-  ({data_text}; SID2 ranges: light r 20-50 m, tilt 30-90 step 5,
-  pan step 1, CCT 2500-10000 K |Duv| <= 0.01; camera r 20 m, tilt 10-70; 1-3 objects).
-  The dataset's `train` split ({meta['train_images_per_epoch'][-1]} images) trains, its `val` split drives
+{earlier_data}{final_data_text}- SID2 ranges: light r 20-50 m, tilt 30-90 step 5, pan step 1, CCT 2500-10000 K |Duv| <= 0.01;
+  camera r 20 m, tilt 10-70; 1-3 objects.
+  {splits} ({meta['train_images_per_epoch'][-1]} images) train{'s' if n_final == 1 else ''}, {'its `val` split drives' if n_final == 1 else 'their `val` splits drive'}
   the scheduler and the choice of the best epoch. The paper used 45,000 images.
 
 ## Training
@@ -440,10 +464,9 @@ Full report of `relight evaluate`:
 
 ## Reproduce
 ```
-{"".join(cmd + chr(10) for cmd, _ in data_lines[:-1])}{train_cmd}
-{test_cmd}
+{"".join(cmd + chr(10) for cmd, _ in data_lines)}{test_cmd}
 {stage_lines}{train_cmd_line}
-{calibrate_line}.venv/bin/python scripts/ship_model.py --run RUN --train-data {td['path']} --test-data {test_data}{ship_extra} --notes NOTES.md
+{calibrate_line}.venv/bin/python scripts/ship_model.py --run RUN{''.join(f" --train-data {d['path']}" for d in tds)} --test-data {test_data}{ship_extra} --notes NOTES.md
 ```
 (`bash scripts/make_sid2.sh` makes the SID2-scale sets of one-colour objects and `bash
 scripts/train_sid2.sh ARCH` trains on them; `bash scripts/make_sid2_parts.sh` makes those of
@@ -459,7 +482,9 @@ repeatable in its settings, not bit for bit (thread scheduling).
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--run", required=True, help="training run folder (relight train --out)")
-    ap.add_argument("--train-data", required=True)
+    ap.add_argument("--train-data", required=True, action="append",
+                    help="the run's training dataset folder (repeat it, in the run's order, for a run "
+                         "trained on several)")
     ap.add_argument("--test-data", required=True, help="a fresh dataset never used for training")
     ap.add_argument("--eval-out", default=None, help="evaluation folder (default TEST-eval)")
     ap.add_argument("--notes", default=None, help="markdown file: where the model falls short, and why")
@@ -477,7 +502,8 @@ def main() -> int:
         if not sep or not name or not folder:
             ap.error(f"--prior-test takes NAME=DIR, got {item!r}")
         prior_tests[name] = folder
-    meta = ship(args.run, args.train_data, args.model, args.models_dir)
+    meta = ship(args.run, args.train_data[0] if len(args.train_data) == 1 else args.train_data,
+                args.model, args.models_dir)
     eval_out = args.eval_out or args.test_data.rstrip("/") + "-eval"
     from relight.net.evaluate import evaluate
     from relight.net.predict import load_model

@@ -206,3 +206,34 @@ def test_card_of_a_three_stage_run_on_other_data(ship_model, world, tmp_path, mo
     gens = [line for line in reproduce if line.startswith("relight generate")]
     assert any(f"--out {world / 'train'} " in g for g in gens) and any(f"--out {world / 'test'} " in g for g in gens)
     assert "- Earlier stages: `relight generate" in card
+
+
+def test_card_of_a_run_on_two_folders(ship_model, world, tmp_path, monkeypatch, capsys):
+    """A fine-tune on two datasets together (`relight train --data A --data B`): the card's
+    train command repeats --data in the run's order, both datasets' generate commands are
+    listed (with their settings) and the ship command names both --train-data."""
+    from relight.net.train import TrainConfig, train
+    train_dir, other = str(world / "train"), str(world / "test-munsell")
+    torch.manual_seed(0)
+    train(TrainConfig(data_dir=(train_dir, other), epochs=1, res=RES, batch_size=4, train_split="all",
+                      val_split="all", lr=2e-5, init=str(world / "run" / "best.safetensors")),
+          tmp_path / "both", progress=False)
+    models = tmp_path / "models"
+    monkeypatch.setattr(sys, "argv", ["ship_model.py", "--run", str(tmp_path / "both"), "--train-data", train_dir,
+                                      "--train-data", other, "--test-data", str(world / "test"),
+                                      "--eval-out", str(tmp_path / "ev"), "--models-dir", str(models)])
+    assert ship_model.main() == 0
+    capsys.readouterr()
+    meta = json.load(open(models / "sid2.json"))
+    assert [d["path"] for d in meta["train_datasets"]] == [train_dir, other]
+    assert meta["train_datasets"][1]["records"] == 4 and meta["train_images_per_epoch"] == [8 + 4, 8 + 4]
+    card = (models / "MODEL_CARD.md").read_text()
+    reproduce = card.split("## Reproduce")[1].splitlines()
+    run_cmd = next(line for line in reproduce if "--out RUN" in line)
+    assert f"--data {train_dir} --data {other} --out RUN" in run_cmd
+    assert f"--train-data {train_dir} --train-data {other} --test-data" in card
+    gens = [line for line in reproduce if line.startswith("relight generate")]
+    assert [g.split("--out ")[1].split()[0] for g in gens] == [train_dir, other, str(world / "test")]
+    assert "--colour-prior munsell" in gens[1] and "colour prior munsell" in card
+    assert "joined (12 images) train," in " ".join(card.split())
+    assert f"on other data (`{train_dir} + {other}`)" in card
