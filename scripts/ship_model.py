@@ -2,13 +2,15 @@
 
     .venv/bin/python scripts/ship_model.py --run RUN --train-data TRAIN --test-data TEST \
         [--model CALIBRATED.safetensors] [--prior-test hsv=DIR --prior-test munsell=DIR]
+        [--other-test mosaic=DIR ...]
 
 1. copies RUN/best.safetensors (or --model, e.g. the output of ``relight calibrate`` on
    RUN; weights unchanged) to relight/models/sid2.safetensors with its metadata,
    plus sid2.json and the training log sid2_log.csv;
 2. runs ``relight evaluate`` with the shipped model on every image of TEST (a set never
    used for training) into TEST-eval/ (or --eval-out), and on each --prior-test set (a
-   test set of one surface-colour prior) into EVAL-OUT-prior-NAME/;
+   test set of one surface-colour prior) into EVAL-OUT-prior-NAME/, and on each --other-test set
+   (other generator settings, e.g. mosaic backgrounds) into EVAL-OUT-other-NAME/;
 3. writes relight/models/MODEL_CARD.md: data, training, and the paper's Tables 1-3 next
    to ours, the colour error per prior. ``relight evaluate`` reproduces the card's
    numbers exactly. Everything the card says of the model and the data (architecture,
@@ -269,6 +271,25 @@ def prior_rows(prior_evals: dict) -> str:
     return "\n".join(lines)
 
 
+def other_test_rows(other_evals: dict, test_card: dict) -> str:
+    """Markdown table of the four mean errors (and the 90% cones' coverage) on other test
+    sets: ``{name: (test_dir, eval_dir)}``; each row names the generator settings in which
+    its set differs from the main test set (``test_card``)."""
+    main = settings_text(test_card).split(", ")
+    lines = ["| Test set | Differs from the main test set in | Images | Pan | Tilt | Direction | Colour | "
+             "Colour median | 90% cones cover |",
+             "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for name, (test_dir, eval_dir) in other_evals.items():
+        ev = json.load(open(os.path.join(eval_dir, "metrics.json")))
+        o = ev["tables"]["overall"]
+        differs = [part for part in settings_text(read_card(test_dir)).split(", ") if part not in main]
+        cover = ev.get("uncertainty", {}).get("cone90_coverage")
+        lines.append(f"| {name} (`{test_dir}`) | {', '.join(differs) or 'the seed only'} | {ev['n']} | "
+                     + " | ".join(f"{o[m]['mean']:.2f}" for m in METRICS) + f" | {o['colour']['median']:.2f} | "
+                     + ("-" if cover is None else f"{100 * cover:.1f}%") + " |")
+    return "\n".join(lines)
+
+
 def level_rows(tables: dict, group: str, paper: dict) -> str:
     out = []
     for name, ref in paper.items():
@@ -302,7 +323,7 @@ def mirror_line(mirror_eval_dir: str | None, test_data: str) -> str:
 
 
 def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_evals: dict | None = None,
-               mirror_eval_dir: str | None = None) -> str:
+               mirror_eval_dir: str | None = None, other_evals: dict | None = None) -> str:
     """Write MODEL_CARD.md into the models folder and return its text; ``prior_evals``:
     ``{prior name: (test set, evaluation folder)}``; ``mirror_eval_dir``: the test set's
     evaluation with ``--mirror-average``."""
@@ -395,11 +416,16 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
                           f"--mode {cal['settings']['mode']} --out CAL.safetensors\n")
         ship_extra = " --model CAL.safetensors"
     ship_extra += "".join(f" --prior-test {name}={folder}" for name, (folder, _) in (prior_evals or {}).items())
+    ship_extra += "".join(f" --other-test {name}={folder}" for name, (folder, _) in (other_evals or {}).items())
     priors = ""
     if prior_evals:
         priors = ("\n## Colour error per surface-colour prior\n"
                   "The shipped model on a test set of each prior (`relight generate --colour-prior NAME`, all "
                   "images; degrees):\n\n" + prior_rows(prior_evals) + "\n")
+    if other_evals:
+        priors += ("\n## Other test sets\n"
+                   "The shipped model on test sets made with other generator settings (all images; mean "
+                   "degrees unless stated):\n\n" + other_test_rows(other_evals, test_card) + "\n")
     final_data_text = "".join(
         f"- `{cmd}`{(' (' + note + ')') if note else ''}\n  ({settings_text(d)}, depth {dataset_settings(d)['max_depth']})\n"
         for (cmd, note), d in zip(final_lines, tds))
@@ -493,15 +519,22 @@ def main() -> int:
     ap.add_argument("--prior-test", action="append", default=[], metavar="NAME=DIR",
                     help="a test set of one surface-colour prior (repeat for each); the card reports the "
                          "colour error on each")
+    ap.add_argument("--other-test", action="append", default=[], metavar="NAME=DIR",
+                    help="a test set made with other generator settings (e.g. mosaic backgrounds, one-colour "
+                         "objects; repeat for each); the card reports the four errors on each")
     ap.add_argument("--models-dir", default=MODELS_DIR,
                     help="where the model and its card go (default the package's models folder)")
     args = ap.parse_args()
-    prior_tests = {}
-    for item in args.prior_test:
-        name, sep, folder = item.partition("=")
-        if not sep or not name or not folder:
-            ap.error(f"--prior-test takes NAME=DIR, got {item!r}")
-        prior_tests[name] = folder
+    def named_folders(items, flag):
+        out = {}
+        for item in items:
+            name, sep, folder = item.partition("=")
+            if not sep or not name or not folder:
+                ap.error(f"{flag} takes NAME=DIR, got {item!r}")
+            out[name] = folder
+        return out
+    prior_tests = named_folders(args.prior_test, "--prior-test")
+    other_tests = named_folders(args.other_test, "--other-test")
     meta = ship(args.run, args.train_data[0] if len(args.train_data) == 1 else args.train_data,
                 args.model, args.models_dir)
     eval_out = args.eval_out or args.test_data.rstrip("/") + "-eval"
@@ -517,8 +550,12 @@ def main() -> int:
     for name, folder in prior_tests.items():
         prior_evals[name] = (folder, f"{eval_out.rstrip('/')}-prior-{name}")
         evaluate(shipped, folder, prior_evals[name][1], split="all", model_name=f"shipped model, prior {name}")
+    other_evals = {}
+    for name, folder in other_tests.items():
+        other_evals[name] = (folder, f"{eval_out.rstrip('/')}-other-{name}")
+        evaluate(shipped, folder, other_evals[name][1], split="all", model_name=f"shipped model, {name}")
     notes = open(args.notes).read().strip() if args.notes else "(no notes given)"
-    print(write_card(meta, eval_out, args.test_data, notes, prior_evals, mirror_out))
+    print(write_card(meta, eval_out, args.test_data, notes, prior_evals, mirror_out, other_evals))
     return 0
 
 

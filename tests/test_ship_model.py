@@ -221,7 +221,8 @@ def test_card_of_a_run_on_two_folders(ship_model, world, tmp_path, monkeypatch, 
     models = tmp_path / "models"
     monkeypatch.setattr(sys, "argv", ["ship_model.py", "--run", str(tmp_path / "both"), "--train-data", train_dir,
                                       "--train-data", other, "--test-data", str(world / "test"),
-                                      "--eval-out", str(tmp_path / "ev"), "--models-dir", str(models)])
+                                      "--eval-out", str(tmp_path / "ev"), "--models-dir", str(models),
+                                      "--other-test", f"munsell={other}"])
     assert ship_model.main() == 0
     capsys.readouterr()
     meta = json.load(open(models / "sid2.json"))
@@ -237,3 +238,10 @@ def test_card_of_a_run_on_two_folders(ship_model, world, tmp_path, monkeypatch, 
     assert "--colour-prior munsell" in gens[1] and "colour prior munsell" in card
     assert "joined (12 images) train," in " ".join(card.split())
     assert f"on other data (`{train_dir} + {other}`)" in card
+    # the other test set: its four mean errors, and the settings in which it differs from the main one
+    overall = json.load(open(tmp_path / "ev-other-munsell" / "metrics.json"))["tables"]["overall"]
+    row = next(line for line in card.splitlines() if line.startswith("| munsell ("))
+    assert "| 4 spp (fixed), colour prior munsell |" in row
+    assert "colour prior hsv" not in row and "32 px" not in row   # settings both sets share are left out
+    assert " | ".join(f"{overall[m]['mean']:.2f}" for m in ("pan", "tilt", "direction", "colour")) in row
+    assert f"--other-test munsell={other} " in card
