@@ -405,14 +405,14 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
             b, a = cal["check_before"], cal["check_after"]
             rho = (lambda v: "-" if v is None else f"{v:.2f}")
             kappa_text += (f"; then `relight calibrate --mode {cal['settings']['mode']}` on the {cal['split']} split "
-                           f"of `{cal['data_dir']}` ({cal['n_images']} images, network frozen; kept: {cal['kept']}): "
+                           f"of `{data_label(cal['data_dir'])}` ({cal['n_images']} images, network frozen; kept: {cal['kept']}): "
                            f"on its check part the 90% cone covered {100 * b['cone90_coverage']:.1f}% -> "
                            f"{100 * a['cone90_coverage']:.1f}%, Spearman(cone, error) {rho(b['spearman_cone90_error'])} "
                            f"-> {rho(a['spearman_cone90_error'])}")
     calibrate_line, ship_extra = "", ""
     cal = meta.get("kappa_calibration")
     if cal:
-        calibrate_line = (f"relight calibrate --run RUN --data {cal['data_dir']} --split {cal['split']} "
+        calibrate_line = (f"relight calibrate --run RUN {data_options(cal['data_dir'])} --split {cal['split']} "
                           f"--mode {cal['settings']['mode']} --out CAL.safetensors\n")
         ship_extra = " --model CAL.safetensors"
     ship_extra += "".join(f" --prior-test {name}={folder}" for name, (folder, _) in (prior_evals or {}).items())

@@ -135,3 +135,25 @@ def test_cli_calibrate_refuses_bad_input(tiny, model_file, tmp_path, capsys):
     assert main(["calibrate", "--model", model_file, "--data", tiny, "--split", "all", "--out", model_file]) == 2
     assert "input" in capsys.readouterr().err
     assert not (tmp_path / "c.safetensors").exists()
+
+
+def test_cli_calibrate_on_two_folders_joins_their_splits(tiny, model_file, tmp_path, capsys, monkeypatch):
+    # A model trained on several folders is calibrated on their joined held-out splits:
+    # the same folder's copy doubles the images and leaves the fit's inputs otherwise equal.
+    import functools
+    import shutil
+
+    from relight.net import calibrate
+    monkeypatch.setattr(calibrate, "CalibrationConfig", functools.partial(CalibrationConfig, max_steps=20))
+    twin = str(tmp_path / "twin")
+    shutil.copytree(tiny, twin)
+    out = tmp_path / "cal.safetensors"
+    assert main(["calibrate", "--run", model_file, "--data", tiny, "--data", twin, "--split", "all",
+                 "--mode", "temperature", "--out", str(out)]) == 0
+    rep = read_model_file(out)[2]["kappa_calibration"]
+    assert rep["n_images"] == 24 and rep["n_fit"] + rep["n_check"] == 48
+    assert rep["data_dir"] == [tiny, twin]
+    capsys.readouterr()
+    assert main(["calibrate", "--run", model_file, "--data", tiny, "--data", tiny, "--split", "all",
+                 "--out", str(tmp_path / "c2.safetensors")]) == 2
+    assert "twice" in capsys.readouterr().err and not (tmp_path / "c2.safetensors").exists()

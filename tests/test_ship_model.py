@@ -218,8 +218,13 @@ def test_card_of_a_run_on_two_folders(ship_model, world, tmp_path, monkeypatch, 
     train(TrainConfig(data_dir=(train_dir, other), epochs=1, res=RES, batch_size=4, train_split="all",
                       val_split="all", lr=2e-5, init=str(world / "run" / "best.safetensors")),
           tmp_path / "both", progress=False)
+    from relight.net.calibrate import CalibrationConfig, calibrate_model_file
+    calibrated = str(tmp_path / "cal.safetensors")   # calibrated on both folders' joined split
+    calibrate_model_file(tmp_path / "both", [train_dir, other], calibrated,
+                         CalibrationConfig(split="all", mode="temperature"))
     models = tmp_path / "models"
     monkeypatch.setattr(sys, "argv", ["ship_model.py", "--run", str(tmp_path / "both"), "--train-data", train_dir,
+                                      "--model", calibrated,
                                       "--train-data", other, "--test-data", str(world / "test"),
                                       "--eval-out", str(tmp_path / "ev"), "--models-dir", str(models),
                                       "--other-test", f"munsell={other}"])
@@ -233,6 +238,8 @@ def test_card_of_a_run_on_two_folders(ship_model, world, tmp_path, monkeypatch, 
     run_cmd = next(line for line in reproduce if "--out RUN" in line)
     assert f"--data {train_dir} --data {other} --out RUN" in run_cmd
     assert f"--train-data {train_dir} --train-data {other} --test-data" in card
+    assert f"relight calibrate --run RUN --data {train_dir} --data {other} --split all" in card
+    assert f"of `{train_dir} + {other}` (12 images" in card
     gens = [line for line in reproduce if line.startswith("relight generate")]
     assert [g.split("--out ")[1].split()[0] for g in gens] == [train_dir, other, str(world / "test")]
     assert "--colour-prior munsell" in gens[1] and "colour prior munsell" in card

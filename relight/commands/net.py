@@ -58,7 +58,8 @@ def add_commands(sub) -> None:
                                    "and write the calibrated model file.")
     c.add_argument("--model", "--run", dest="model", required=True,
                    help="model .safetensors or training run folder (its best.safetensors)")
-    c.add_argument("--data", required=True, help="dataset folder")
+    c.add_argument("--data", required=True, action="append",
+                   help="dataset folder; repeat it for a model trained on several (their splits are joined)")
     c.add_argument("--split", default="val", choices=["train", "val", "test", "all"],
                    help="held-out split to fit on (default val; never the split you report on)")
     c.add_argument("--mode", default="head", choices=["head", "last", "temperature"],
@@ -114,9 +115,9 @@ def cmd_calibrate(args) -> int:
     from relight.fileio import check_file_target, check_outputs
     from relight.net.calibrate import CalibrationConfig, calibrate_model_file
     model_file = os.path.join(args.model, "best.safetensors") if os.path.isdir(args.model) else args.model
-    check_outputs([args.out], [args.data, args.model, model_file])
+    check_outputs([args.out], [*args.data, args.model, model_file])
     check_file_target(args.out)
-    rep = calibrate_model_file(args.model, args.data, args.out, CalibrationConfig(split=args.split, mode=args.mode),
+    rep = calibrate_model_file(args.model, args.data[0] if len(args.data) == 1 else args.data, args.out, CalibrationConfig(split=args.split, mode=args.mode),
                                progress=True)
     b, a = rep["check_before"], rep["check_after"]
     fmt = (lambda s: f"NLL {s['nll_mean']:.3f}, 90% cone covers {100 * s['cone90_coverage']:.1f}%, Spearman "

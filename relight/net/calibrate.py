@@ -42,7 +42,7 @@ import numpy as np
 import torch
 
 from relight.errors import DatasetError, TrainingError
-from relight.net.data import LightDataset, flip_image, flip_y
+from relight.net.data import LightDataset, dataset_folders, flip_image, flip_y
 from relight.net.model import head_kappa
 from relight.net.uncertainty import direction_from_y, fit_temperature, uncertainty_summary, vmf_nll
 
@@ -169,17 +169,19 @@ def fit_head(head: torch.nn.Module, fit: dict, check: dict, cfg: CalibrationConf
     return best_step, curve
 
 
-def calibrate_kappa(model, data_dir: str | os.PathLike, cfg: CalibrationConfig = CalibrationConfig(),
+def calibrate_kappa(model, data_dir, cfg: CalibrationConfig = CalibrationConfig(),
                     progress: bool = False) -> dict:
     """Calibrate ``model``'s direction confidence on the held-out ``cfg.split`` of
-    ``data_dir`` (see the module docstring); ``model`` is changed in place (kappa head
-    weights and ``kappa_temperature``). Returns the report (dict, JSON-ready)."""
+    ``data_dir`` (a dataset folder, or a sequence of folders whose splits are joined, as
+    for a model trained on several); see the module docstring. ``model`` is changed in
+    place (kappa head weights and ``kappa_temperature``). Returns the report (dict,
+    JSON-ready; ``data_dir`` is one absolute path, or a list of them)."""
     if not getattr(model, "has_kappa", False):
         raise TrainingError("the model has no kappa head (trained with --kappa-weight 0): nothing to calibrate")
-    data_dir = os.fspath(data_dir)
-    dataset = LightDataset(data_dir, cfg.split, model.config.res, cache=False)
+    folders = dataset_folders(data_dir)
+    dataset = LightDataset(folders, cfg.split, model.config.res, cache=False)
     if len(dataset) < MIN_IMAGES:
-        raise DatasetError(f"{data_dir}: split {cfg.split!r} holds {len(dataset)} images; calibration needs "
+        raise DatasetError(f"{', '.join(folders)}: split {cfg.split!r} holds {len(dataset)} images; calibration needs "
                            f"at least {MIN_IMAGES}")
     for p in model.parameters():
         p.requires_grad_(False)
@@ -220,13 +222,14 @@ def calibrate_kappa(model, data_dir: str | os.PathLike, cfg: CalibrationConfig =
     for p in model.parameters():
         p.requires_grad_(True)
     model.eval()
-    return {"data_dir": os.path.abspath(data_dir), "split": cfg.split, "n_images": len(dataset),
+    paths = [os.path.abspath(d) for d in folders]
+    return {"data_dir": paths[0] if len(paths) == 1 else paths, "split": cfg.split, "n_images": len(dataset),
             "n_fit": int((~in_check).sum()), "n_check": int(in_check.sum()), "settings": asdict(cfg),
             "kept": kept, "best_step": best_step, "steps": max(0, len(curve) - 1), "temperature": temperature,
             "temperature_before": old_temperature, "check_before": before, "check_after": after}
 
 
-def calibrate_model_file(model_path: str | os.PathLike, data_dir: str | os.PathLike, out_path: str | os.PathLike,
+def calibrate_model_file(model_path: str | os.PathLike, data_dir, out_path: str | os.PathLike,
                          cfg: CalibrationConfig = CalibrationConfig(), progress: bool = False) -> dict:
     """Load a model file (or run folder), :func:`calibrate_kappa` it, and write the result
     to ``out_path`` (a model file; its ``info`` gains ``kappa_calibration``, the report).
