@@ -535,8 +535,7 @@ def main() -> int:
         return out
     prior_tests = named_folders(args.prior_test, "--prior-test")
     other_tests = named_folders(args.other_test, "--other-test")
-    meta = ship(args.run, args.train_data[0] if len(args.train_data) == 1 else args.train_data,
-                args.model, args.models_dir)
+    meta = ship(args.run, args.train_data, args.model, args.models_dir)
     eval_out = args.eval_out or args.test_data.rstrip("/") + "-eval"
     from relight.net.evaluate import evaluate
     from relight.net.predict import load_model

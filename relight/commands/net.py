@@ -117,7 +117,7 @@ def cmd_calibrate(args) -> int:
     model_file = os.path.join(args.model, "best.safetensors") if os.path.isdir(args.model) else args.model
     check_outputs([args.out], [*args.data, args.model, model_file])
     check_file_target(args.out)
-    rep = calibrate_model_file(args.model, args.data[0] if len(args.data) == 1 else args.data, args.out, CalibrationConfig(split=args.split, mode=args.mode),
+    rep = calibrate_model_file(args.model, args.data, args.out, CalibrationConfig(split=args.split, mode=args.mode),
                                progress=True)
     b, a = rep["check_before"], rep["check_after"]
     fmt = (lambda s: f"NLL {s['nll_mean']:.3f}, 90% cone covers {100 * s['cone90_coverage']:.1f}%, Spearman "
