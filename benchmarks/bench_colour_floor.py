@@ -40,8 +40,8 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from relight.dataset import read_manifest  # noqa: E402
 from relight.metrics import colour_error_deg  # noqa: E402
-from relight.scene.albedo import (ideal_observer_errors, munsell_albedos, object_reflectance,  # noqa: E402
-                                  texture_colours)
+from relight.scene.albedo import (OBJECT_RANGE, box_direction_logpdf, ideal_observer_errors,  # noqa: E402
+                                  munsell_albedos, object_reflectance, texture_colours)
 
 COUNTS = (1, 3, 5, 10, 30, 100, 300)
 
@@ -116,12 +116,127 @@ def by_object_parts(eval_dir: str, data_dir: str) -> dict[tuple[int, int], tuple
     return _colour_error_by(eval_dir, group)
 
 
+MIN_PIXELS = 4             # a surface counts as seen when at least this many pixels show it
+VALUE_TOL = 2e-3           # albedo AOV against a texture colour (bilinear blends at cell edges miss)
+DIRECTION_TOL_DEG = 0.5    # objects: the rough diffuse BSDF's albedo is its reflectance times a grey factor
+VISIBLE_BINS = ((0, 9), (10, 29), (30, 99), (100, 299), (300, 100000))
+
+
+def albedo_image(builder, spec) -> np.ndarray:
+    """The first-hit albedo of every pixel of a scene file's view, ``(H * W, 3)`` (Mitsuba's
+    ``aov`` integrator through the one render path, one sample per pixel)."""
+    from relight import backend
+    from relight.render import render_scene
+    integrator = backend.mitsuba().load_dict({"type": "aov", "aovs": "albedo:albedo"})
+    img = render_scene(builder.template_for(spec).scene, spp=1, seed=0, integrator=integrator)
+    return img[..., -3:].reshape(-1, 3).astype(np.float64)
+
+
+def visible_surfaces(spec, albedos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(texture colours seen, object part colours seen)`` of a scene: the wall, floor and
+    object albedos of its scene file that at least :data:`MIN_PIXELS` pixels of ``albedos``
+    (:func:`albedo_image`) show; a colour repeated (a floor tile) counts once."""
+    textures = np.unique(np.array([c for t in (*spec.room.wall_textures, spec.room.floor_texture)
+                                   for c in t["colors"]], dtype=np.float64), axis=0)
+    parts = np.unique(np.array([c for o in spec.objects for c in o.colours], dtype=np.float64), axis=0)
+    values, pixels = np.unique(np.round(albedos, 5), axis=0, return_counts=True)
+    gap = np.abs(values[:, None, :] - textures[None]).max(-1)
+    nearest = gap.argmin(1)
+    hit = gap[np.arange(len(values)), nearest] < VALUE_TOL
+    seen_tex = textures[np.bincount(nearest[hit], weights=pixels[hit], minlength=len(textures)) >= MIN_PIXELS]
+    rest, rest_pixels = values[~hit & (values.sum(1) > 0)], pixels[~hit & (values.sum(1) > 0)]
+    u = rest / np.linalg.norm(rest, axis=1, keepdims=True)
+    p = parts / np.linalg.norm(parts, axis=1, keepdims=True)
+    cos = u @ p.T
+    nearest = cos.argmax(1)
+    hit = cos[np.arange(len(u)), nearest] > np.cos(np.radians(DIRECTION_TOL_DEG))
+    seen_parts = parts[np.bincount(nearest[hit], weights=rest_pixels[hit], minlength=len(parts)) >= MIN_PIXELS]
+    return seen_tex, seen_parts
+
+
+def scene_floors(data_dir: str, n_scenes: int, n_candidates: int = 4000, seed: int = 0,
+                 texture_draws: int = 200_000) -> list[dict]:
+    """The Bayes floor of each of the first ``n_scenes`` scenes of a dataset: the error of the
+    posterior-mean light colour given the colours of the surfaces its image shows (walls and
+    floor: the prior of one texture colour, :func:`relight.scene.albedo.texture_colours`;
+    objects: the object prior, in closed form for ``hsv``), over ``n_candidates`` lights of
+    the generator's prior. Mosaic cells are independent draws, so this is the floor of a
+    mosaic scene; the colours of one pattern texture share a hue, so for patterns it is the
+    error of an observer that takes them as independent (at least the floor)."""
+    from relight.colour import sample_light_colour
+    from relight.scene.albedo import (chromaticity, chromaticity_log_density, munsell_albedos,
+                                      posterior_mean_light, scaled_chromaticity_logpdf)
+    from relight.scene.build import SceneBuilder
+    from relight.scene.spec import load_scene
+    from tqdm import tqdm
+    rng = np.random.default_rng(seed)
+    candidates = np.array([sample_light_colour(rng)[2] for _ in range(n_candidates)])
+    densities: dict = {}
+
+    def texture_density(prior: str) -> np.ndarray:   # drawn once per prior the scenes use
+        if prior not in densities:
+            densities[prior] = chromaticity_log_density(np.array([texture_colours(rng, 1, prior)[0]
+                                                                  for _ in range(texture_draws)]))
+        return densities[prior]
+    munsell_density = chromaticity_log_density(munsell_albedos())
+    lo, hi = OBJECT_RANGE
+    builder, out = SceneBuilder(), []
+    for rec in tqdm(read_manifest(data_dir)[:n_scenes], desc="scenes", leave=False):
+        spec = load_scene(os.path.join(data_dir, "scenes", f"{rec['id']}.json"))
+        prior = spec.colour_prior or "hsv"
+        tex, parts = visible_surfaces(spec, albedo_image(builder, spec))
+        light = np.asarray(spec.light.rgb, dtype=np.float64)
+        logp = [np.zeros((1, len(candidates)))]
+        if len(tex):
+            logp.append(scaled_chromaticity_logpdf(chromaticity(tex * light), candidates, texture_density(prior)))
+        if len(parts):
+            c = parts * light
+            logp.append(box_direction_logpdf(c / np.linalg.norm(c, axis=1, keepdims=True), candidates, lo, hi)
+                        if prior == "hsv" else scaled_chromaticity_logpdf(chromaticity(c), candidates, munsell_density))
+        estimate = posterior_mean_light(np.concatenate(logp), candidates)
+        out.append({"id": rec["id"], "textures": len(tex), "parts": len(parts),
+                    "floor_deg": float(colour_error_deg(estimate, light))})
+    return out
+
+
+def print_scene_floors(rows: list[dict], data_dir: str, eval_dir: str | None) -> None:
+    """The per-scene floors by the number of surfaces seen, beside a model's colour error
+    on the same images (``eval_dir``: its ``relight evaluate`` output)."""
+    model = {}
+    if eval_dir:
+        with open(os.path.join(eval_dir, "per_image.csv")) as f:
+            model = {r["id"]: float(r["colour_err_deg"]) for r in csv.DictReader(f)}
+    print(f"\nBayes floor per scene of {data_dir} ({len(rows)} scenes; the surfaces each image shows, "
+          "from an albedo render), degrees:\n")
+    print("| surfaces seen | scenes | floor mean | floor median |" + (" model colour mean |" if model else ""))
+    print("|---|---:|---:|---:|" + ("---:|" if model else ""))
+    groups = [(f"{lo}-{hi}" if hi < 100000 else f">= {lo}", [r for r in rows if lo <= r["textures"] + r["parts"] <= hi])
+              for lo, hi in VISIBLE_BINS] + [("all", rows)]
+    for label, group in groups:
+        if not group:
+            continue
+        f = [r["floor_deg"] for r in group]
+        line = f"| {label} | {len(group)} | {np.mean(f):.2f} | {np.median(f):.2f} |"
+        if model:
+            line += f" {np.mean([model[r['id']] for r in group if r['id'] in model]):.2f} |"
+        print(line)
+    seen = [r["textures"] + r["parts"] for r in rows]
+    print(f"\nSurfaces seen per scene: median {np.median(seen):.0f} (walls and floor {np.median([r['textures'] for r in rows]):.0f}, "
+          f"object parts {np.median([r['parts'] for r in rows]):.0f}).")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, default=2000, help="scenes drawn per count (default 2000)")
     ap.add_argument("--eval", help="a relight evaluate output folder (per_image.csv)")
     ap.add_argument("--data", help="the dataset it evaluated (for the object counts)")
+    ap.add_argument("--floors", metavar="DATA", help="the Bayes floor of each scene of this dataset (the "
+                    "surfaces its image shows); with --eval, beside that model's colour error")
+    ap.add_argument("--scenes", type=int, default=300, help="scenes for --floors (default 300)")
     args = ap.parse_args()
+    if args.floors:
+        print_scene_floors(scene_floors(args.floors, args.scenes), args.floors, args.eval)
+        return 0
     table = averaging_table(args.draws)
     print("Mean colour of N surfaces vs the prior's mean colour (gray-world's error), mean degrees:\n")
     print("| prior | " + " | ".join(f"N={n}" for n in COUNTS) + " |")

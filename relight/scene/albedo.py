@@ -117,6 +117,55 @@ def box_direction_logpdf(u: np.ndarray, lights: np.ndarray, lo: float, hi: float
     return np.log(vol + 1e-30) - np.log(lights.prod(-1))[None, :]
 
 
+CHROMA_BINS = 200   # bins per axis of the chromaticity grid (r / sum, g / sum, each in [0, 1])
+
+
+def chromaticity(rgb) -> np.ndarray:
+    """``(..., 3)`` RGB -> ``(..., 2)`` chromaticity ``(r, g) / (r + g + b)``."""
+    c = np.asarray(rgb, dtype=np.float64)
+    return c[..., :2] / c.sum(-1, keepdims=True)
+
+
+def chromaticity_log_density(albedos: np.ndarray, bins: int = CHROMA_BINS, smooth_bins: float = 1.0) -> np.ndarray:
+    """Log density ``(bins, bins)`` of the chromaticity of a prior's albedos, from draws
+    ``(n, 3)``: a histogram on ``[0, 1]^2``, Gaussian-smoothed by ``smooth_bins`` bins and
+    floored at 1e-6 of its peak (no candidate light is ruled out by an empty bin)."""
+    from scipy.ndimage import gaussian_filter
+    x = chromaticity(albedos)
+    h, _, _ = np.histogram2d(x[:, 0], x[:, 1], bins=bins, range=[[0.0, 1.0], [0.0, 1.0]], density=True)
+    h = gaussian_filter(h, smooth_bins)
+    return np.log(np.maximum(h, 1e-6 * h.max()))
+
+
+def scaled_chromaticity_logpdf(chrom: np.ndarray, lights: np.ndarray, log_density: np.ndarray) -> np.ndarray:
+    """``log p(x | l)`` of the chromaticity ``x`` (N, 2) of ``a * l`` when the albedo's
+    chromaticity has the density ``log_density`` (:func:`chromaticity_log_density`), for
+    each light ``l`` (M, 3); shape (N, M). Any prior, where :func:`box_direction_logpdf`
+    is the closed form of one.
+
+    The albedo's chromaticity is that of ``v = x / l`` (x completed to three
+    coordinates). The map from the albedo's chromaticity to the observed one is
+    projective, ``a -> (l a) / (l . a)``, with Jacobian ``prod(l) / (l . a)^3 = prod(l)
+    (sum v)^3``, so ``log p(x | l) = log p_a(v / sum v) - log prod(l) - 3 log sum v``;
+    it does not change when ``l`` is scaled."""
+    chrom = np.asarray(chrom, dtype=np.float64)
+    chi = np.concatenate([chrom, 1.0 - chrom.sum(-1, keepdims=True)], -1)
+    v = chi[:, None, :] / lights[None, :, :]
+    total = v.sum(-1)
+    bins = log_density.shape[0]
+    idx = np.clip((v[..., :2] / total[..., None] * bins).astype(np.int64), 0, bins - 1)
+    return log_density[idx[..., 0], idx[..., 1]] - np.log(lights.prod(-1))[None, :] - 3.0 * np.log(total)
+
+
+def posterior_mean_light(logp: np.ndarray, candidates: np.ndarray) -> np.ndarray:
+    """The posterior-mean light colour (unit norm) from per-surface log-likelihoods
+    ``logp`` (N, M) over ``candidates`` (M, 3) drawn from the light prior."""
+    total = logp.sum(0)
+    w = np.exp(total - total.max())
+    mean = (w[:, None] * candidates / np.linalg.norm(candidates, axis=1, keepdims=True)).sum(0)
+    return mean / np.linalg.norm(mean)
+
+
 def ideal_observer_errors(n_surfaces: int, draws: int, candidates: np.ndarray,
                           rng: np.random.Generator) -> np.ndarray:
     """Colour error (degrees) of the ideal observer in ``draws`` scenes of ``n_surfaces``
