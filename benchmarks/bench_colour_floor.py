@@ -40,8 +40,8 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from relight.dataset import read_manifest  # noqa: E402
 from relight.metrics import colour_error_deg  # noqa: E402
-from relight.scene.albedo import (OBJECT_RANGE, box_direction_logpdf, ideal_observer_errors,  # noqa: E402
-                                  munsell_albedos, object_reflectance, texture_colours)
+from relight.scene.albedo import (ALBEDO_MAX, ALBEDO_MIN, OBJECT_RANGE, box_direction_logpdf,  # noqa: E402
+                                  ideal_observer_errors, munsell_albedos, object_reflectance, texture_colours)
 
 COUNTS = (1, 3, 5, 10, 30, 100, 300)
 
@@ -119,6 +119,7 @@ def by_object_parts(eval_dir: str, data_dir: str) -> dict[tuple[int, int], tuple
 MIN_PIXELS = 4             # a surface counts as seen when at least this many pixels show it
 VALUE_TOL = 2e-3           # albedo AOV against a texture colour (bilinear blends at cell edges miss)
 DIRECTION_TOL_DEG = 0.5    # objects: the rough diffuse BSDF's albedo is its reflectance times a grey factor
+PATTERN_DIRECTION_TOL_DEG = 1.5   # pattern textures' colours, seen through blends and tile variation
 VISIBLE_BINS = ((0, 9), (10, 29), (30, 99), (100, 299), (300, 100000))
 
 
@@ -132,18 +133,27 @@ def albedo_image(builder, spec) -> np.ndarray:
     return img[..., -3:].reshape(-1, 3).astype(np.float64)
 
 
-def visible_surfaces(spec, albedos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(texture colours seen, object part colours seen)`` of a scene: the wall, floor and
-    object albedos of its scene file that at least :data:`MIN_PIXELS` pixels of ``albedos``
-    (:func:`albedo_image`) show; a colour repeated (a floor tile) counts once."""
-    textures = np.unique(np.array([c for t in (*spec.room.wall_textures, spec.room.floor_texture)
-                                   for c in t["colors"]], dtype=np.float64), axis=0)
-    parts = np.unique(np.array([c for o in spec.objects for c in o.colours], dtype=np.float64), axis=0)
+def visible_surfaces(spec, albedos: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
+    """``(texture colours seen, object part colours seen)`` of a scene: the albedos of its
+    scene file that at least :data:`MIN_PIXELS` pixels of ``albedos`` (:func:`albedo_image`)
+    show. Texture colours come per texture (walls in order, then the floor; a colour the
+    floor's tiles repeat counts once), as a list of ``(n_k, 3)`` arrays."""
+    textures = [*spec.room.wall_textures, spec.room.floor_texture]
+    colours = np.array([c for t in textures for c in t["colors"]], dtype=np.float64)
+    owner = np.array([k for k, t in enumerate(textures) for _ in t["colors"]])
+    mosaic = np.array([t["kind"] == "mosaic" for t in textures])[owner]
     values, pixels = np.unique(np.round(albedos, 5), axis=0, return_counts=True)
-    gap = np.abs(values[:, None, :] - textures[None]).max(-1)
+    gap = np.abs(values[:, None, :] - colours[None]).max(-1)
     nearest = gap.argmin(1)
     hit = gap[np.arange(len(values)), nearest] < VALUE_TOL
-    seen_tex = textures[np.bincount(nearest[hit], weights=pixels[hit], minlength=len(textures)) >= MIN_PIXELS]
+    seen = np.bincount(nearest[hit], weights=pixels[hit], minlength=len(colours)) >= MIN_PIXELS
+    # pattern kinds blend their colours (gradient, noise) or vary each tile's brightness: a
+    # colour counts as seen when pixels share its direction (generous: a floor, not an estimate)
+    unit = lambda c: c / np.maximum(np.linalg.norm(c, axis=-1, keepdims=True), 1e-12)
+    near = (unit(values) @ unit(colours).T) > np.cos(np.radians(PATTERN_DIRECTION_TOL_DEG))
+    seen |= ~mosaic & ((near * pixels[:, None]).sum(0) >= MIN_PIXELS)
+    seen_tex = [np.unique(colours[seen & (owner == k)], axis=0) for k in range(len(textures))]
+    parts = np.unique(np.array([c for o in spec.objects for c in o.colours], dtype=np.float64), axis=0)
     rest, rest_pixels = values[~hit & (values.sum(1) > 0)], pixels[~hit & (values.sum(1) > 0)]
     u = rest / np.linalg.norm(rest, axis=1, keepdims=True)
     p = parts / np.linalg.norm(parts, axis=1, keepdims=True)
@@ -154,31 +164,34 @@ def visible_surfaces(spec, albedos: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return seen_tex, seen_parts
 
 
+BASE_HUES = 48   # the hsv prior's texture base hue, integrated over on a grid of this many values
+
+
 def scene_floors(data_dir: str, n_scenes: int, n_candidates: int = 4000, seed: int = 0,
-                 texture_draws: int = 200_000) -> list[dict]:
+                 texture_draws: int = 40_000) -> list[dict]:
     """The Bayes floor of each of the first ``n_scenes`` scenes of a dataset: the error of the
-    posterior-mean light colour given the colours of the surfaces its image shows (walls and
-    floor: the prior of one texture colour, :func:`relight.scene.albedo.texture_colours`;
-    objects: the object prior, in closed form for ``hsv``), over ``n_candidates`` lights of
-    the generator's prior. Mosaic cells are independent draws, so this is the floor of a
-    mosaic scene; the colours of one pattern texture share a hue, so for patterns it is the
-    error of an observer that takes them as independent (at least the floor)."""
+    posterior-mean light colour given the colours of the surfaces its image shows, under
+    the generator's priors, over ``n_candidates`` lights of its light prior. Walls and
+    floor: an ``hsv`` pattern texture's colours share a base hue, integrated out on
+    :data:`BASE_HUES` values (``texture_draws`` colours each); mosaic cells and ``munsell``
+    colours are independent draws. Objects: the object prior (the box in closed form for
+    ``hsv``, the chips for ``munsell``). Only the surfaces' colours count (no shading, no
+    interreflections, no noise): no estimator of those colours does better on average."""
+    from scipy.special import logsumexp
+
     from relight.colour import sample_light_colour
-    from relight.scene.albedo import (chromaticity, chromaticity_log_density, munsell_albedos,
-                                      posterior_mean_light, scaled_chromaticity_logpdf)
+    from relight.scene.albedo import (chromaticity, chromaticity_log_density, hsv_texture_albedos,
+                                      munsell_albedos, posterior_mean_light, scaled_chromaticity_logpdf,
+                                      shared_hue_logpdf)
     from relight.scene.build import SceneBuilder
     from relight.scene.spec import load_scene
     from tqdm import tqdm
     rng = np.random.default_rng(seed)
     candidates = np.array([sample_light_colour(rng)[2] for _ in range(n_candidates)])
-    densities: dict = {}
-
-    def texture_density(prior: str) -> np.ndarray:   # drawn once per prior the scenes use
-        if prior not in densities:
-            densities[prior] = chromaticity_log_density(np.array([texture_colours(rng, 1, prior)[0]
-                                                                  for _ in range(texture_draws)]))
-        return densities[prior]
-    munsell_density = chromaticity_log_density(munsell_albedos())
+    by_hue = np.stack([chromaticity_log_density(hsv_texture_albedos(rng, texture_draws, (j + 0.5) / BASE_HUES))
+                       for j in range(BASE_HUES)])                      # log p(chromaticity | base hue)
+    hsv_marginal = logsumexp(by_hue, axis=0) - np.log(BASE_HUES)
+    munsell = chromaticity_log_density(np.clip(munsell_albedos(), ALBEDO_MIN, ALBEDO_MAX))
     lo, hi = OBJECT_RANGE
     builder, out = SceneBuilder(), []
     for rec in tqdm(read_manifest(data_dir)[:n_scenes], desc="scenes", leave=False):
@@ -186,15 +199,24 @@ def scene_floors(data_dir: str, n_scenes: int, n_candidates: int = 4000, seed: i
         prior = spec.colour_prior or "hsv"
         tex, parts = visible_surfaces(spec, albedo_image(builder, spec))
         light = np.asarray(spec.light.rgb, dtype=np.float64)
-        logp = [np.zeros((1, len(candidates)))]
-        if len(tex):
-            logp.append(scaled_chromaticity_logpdf(chromaticity(tex * light), candidates, texture_density(prior)))
+        textures = [*spec.room.wall_textures, spec.room.floor_texture]
+        total = np.zeros(len(candidates))
+        for texture, seen in zip(textures, tex):
+            if not len(seen):
+                continue
+            x = chromaticity(seen * light)
+            if prior == "munsell":
+                total += scaled_chromaticity_logpdf(x, candidates, munsell).sum(0)
+            elif texture["kind"] == "mosaic":   # every cell its own base hue
+                total += scaled_chromaticity_logpdf(x, candidates, hsv_marginal).sum(0)
+            else:                               # one base hue for the texture's colours
+                total += shared_hue_logpdf(x, candidates, by_hue)
         if len(parts):
             c = parts * light
-            logp.append(box_direction_logpdf(c / np.linalg.norm(c, axis=1, keepdims=True), candidates, lo, hi)
-                        if prior == "hsv" else scaled_chromaticity_logpdf(chromaticity(c), candidates, munsell_density))
-        estimate = posterior_mean_light(np.concatenate(logp), candidates)
-        out.append({"id": rec["id"], "textures": len(tex), "parts": len(parts),
+            total += (box_direction_logpdf(c / np.linalg.norm(c, axis=1, keepdims=True), candidates, lo, hi)
+                      if prior == "hsv" else scaled_chromaticity_logpdf(chromaticity(c), candidates, munsell)).sum(0)
+        estimate = posterior_mean_light(total[None], candidates)
+        out.append({"id": rec["id"], "textures": int(sum(len(t) for t in tex)), "parts": len(parts),
                     "floor_deg": float(colour_error_deg(estimate, light))})
     return out
 

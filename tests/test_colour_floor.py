@@ -126,12 +126,44 @@ def test_scene_floor_counts_the_surfaces_an_image_shows(mi, tmp_path):
         albedos = bench.albedo_image(builder, scene)
         assert albedos.shape == (48 * 48, 3)
         tex, parts = bench.visible_surfaces(scene, albedos)
-        colours = {tuple(c) for t in (*scene.room.wall_textures, scene.room.floor_texture) for c in t["colors"]}
-        assert len(tex) >= 10 and all(tuple(c) in colours for c in tex.tolist())
+        textures = (*scene.room.wall_textures, scene.room.floor_texture)
+        assert len(tex) == len(textures)   # per texture, each colour seen one of that texture's
+        assert all({tuple(c) for c in seen.tolist()} <= {tuple(c) for c in t["colors"]} for seen, t in zip(tex, textures))
+        assert sum(len(seen) for seen in tex) >= 10
         assert all(tuple(c) in {tuple(p) for o in scene.objects for p in o.colours} for c in parts.tolist())
-        matched = np.abs(albedos[:, None, :] - tex[None]).max(-1).min(1) < bench.VALUE_TOL
+        seen = np.concatenate([t for t in tex if len(t)])
+        matched = np.abs(albedos[:, None, :] - seen[None]).max(-1).min(1) < bench.VALUE_TOL
         assert matched.mean() > 0.4    # most pixels show a wall or floor cell (the rest: objects, cell edges)
-    rows = bench.scene_floors(str(data), 2, n_candidates=600, texture_draws=20_000)
+    rows = bench.scene_floors(str(data), 2, n_candidates=600, texture_draws=5_000)
     assert [r["id"] for r in rows] == [r["id"] for r in read_manifest(data)]
     # tens of independent surfaces: far below the 13.6 degrees of guessing the prior's mean light
     assert all(r["textures"] >= 10 and 0 <= r["floor_deg"] < 5 for r in rows), rows
+    # pattern rooms: a texture's colours share a hue (integrated out); the floor is finite and
+    # higher than the mosaic's on the same light prior
+    patterns = tmp_path / "patterns"
+    generate(patterns, 2, seed=8, cfg=GeneratorConfig(res=48, spp=1, object_parts=(2, 4)), progress=False)
+    rows_p = bench.scene_floors(str(patterns), 2, n_candidates=600, texture_draws=5_000)
+    assert all(0 <= r["floor_deg"] < 30 for r in rows_p)
+    assert sum(r["textures"] for r in rows_p) < sum(r["textures"] for r in rows)
+
+
+def test_shared_hue_likelihood_integrates_the_base_hue():
+    # One density for every base hue: integrating the hue out changes nothing, the
+    # texture's colours are then independent draws of it.
+    from relight.colour import sample_light_colour
+    from relight.scene.albedo import (chromaticity, chromaticity_log_density, hsv_texture_albedos,
+                                      scaled_chromaticity_logpdf, shared_hue_logpdf, texture_colours)
+    from scipy.special import logsumexp
+    rng = np.random.default_rng(6)
+    cands = np.array([sample_light_colour(rng)[2] for _ in range(50)])
+    x = chromaticity(hsv_texture_albedos(rng, 4, 0.3) * cands[0])
+    one = chromaticity_log_density(hsv_texture_albedos(rng, 50_000, 0.3))
+    np.testing.assert_allclose(shared_hue_logpdf(x, cands, np.stack([one] * 5)),
+                               scaled_chromaticity_logpdf(x, cands, one).sum(0), atol=1e-9)
+    # the base-hue densities average to the density of texture_colours' own draws (base hue uniform)
+    k = 24
+    by_hue = np.stack([chromaticity_log_density(hsv_texture_albedos(rng, 40_000, (j + 0.5) / k)) for j in range(k)])
+    marginal = logsumexp(by_hue, axis=0) - np.log(k)
+    direct = chromaticity_log_density(np.array([texture_colours(rng, 1, "hsv")[0] for _ in range(100_000)]))
+    bulk = direct > np.log(0.01) + direct.max()       # where the density is at least 1% of its peak
+    assert bulk.sum() > 500 and np.median(np.abs(marginal - direct)[bulk]) < 0.1

@@ -66,17 +66,24 @@ def munsell_albedos() -> np.ndarray:
     return rgb[keep]
 
 
+def hsv_texture_albedos(rng: np.random.Generator, n: int, base_hue: float) -> np.ndarray:
+    """``(n, 3)`` linear albedos of one ``hsv`` texture whose colours share ``base_hue``
+    (hue in [0, 1)): each colour's hue is the base plus N(0, 0.1), and with odds 0.4 a turn
+    of 0.2-0.8; saturation 0-0.75 and value 0.25-1 (sRGB) each; colours 0 and 1 contrast in
+    value. :func:`texture_colours` draws the base hue uniformly."""
+    hue = (base_hue + rng.normal(0.0, 0.1, n) + (rng.random(n) < 0.4) * rng.uniform(0.2, 0.8, n)) % 1.0
+    sat = rng.uniform(0.0, 0.75, n)
+    val = rng.uniform(0.25, 1.0, n)
+    if n > 1 and abs(val[0] - val[1]) < 0.25:
+        val[1] = val[0] - 0.35 if val[0] > 0.6 else val[0] + 0.35
+    lin = ALBEDO_MIN + (ALBEDO_MAX - ALBEDO_MIN) * srgb_decode(_hsv_to_rgb(hue, sat, val))
+    return np.clip(lin, ALBEDO_MIN, ALBEDO_MAX)
+
+
 def texture_colours(rng: np.random.Generator, n: int, prior: str = "hsv") -> list[list[float]]:
     """``n`` linear-RGB albedos for one texture; colours 0 and 1 contrast in value."""
     if prior == "hsv":
-        hue = (rng.random() + rng.normal(0.0, 0.1, n)
-               + (rng.random(n) < 0.4) * rng.uniform(0.2, 0.8, n)) % 1.0
-        sat = rng.uniform(0.0, 0.75, n)
-        val = rng.uniform(0.25, 1.0, n)
-        if n > 1 and abs(val[0] - val[1]) < 0.25:
-            val[1] = val[0] - 0.35 if val[0] > 0.6 else val[0] + 0.35
-        lin = ALBEDO_MIN + (ALBEDO_MAX - ALBEDO_MIN) * srgb_decode(_hsv_to_rgb(hue, sat, val))
-        return _round(np.clip(lin, ALBEDO_MIN, ALBEDO_MAX))
+        return _round(hsv_texture_albedos(rng, n, rng.random()))
     if prior == "munsell":
         table = munsell_albedos()
         idx = rng.integers(0, len(table), n)
@@ -147,14 +154,25 @@ def scaled_chromaticity_logpdf(chrom: np.ndarray, lights: np.ndarray, log_densit
     coordinates). The map from the albedo's chromaticity to the observed one is
     projective, ``a -> (l a) / (l . a)``, with Jacobian ``prod(l) / (l . a)^3 = prod(l)
     (sum v)^3``, so ``log p(x | l) = log p_a(v / sum v) - log prod(l) - 3 log sum v``;
-    it does not change when ``l`` is scaled."""
+    it does not change when ``l`` is scaled. A stack of densities ``(K, bins, bins)``
+    (e.g. one per base hue of a texture) gives ``(K, N, M)``."""
     chrom = np.asarray(chrom, dtype=np.float64)
     chi = np.concatenate([chrom, 1.0 - chrom.sum(-1, keepdims=True)], -1)
     v = chi[:, None, :] / lights[None, :, :]
     total = v.sum(-1)
-    bins = log_density.shape[0]
+    bins = log_density.shape[-1]
     idx = np.clip((v[..., :2] / total[..., None] * bins).astype(np.int64), 0, bins - 1)
-    return log_density[idx[..., 0], idx[..., 1]] - np.log(lights.prod(-1))[None, :] - 3.0 * np.log(total)
+    return log_density[..., idx[..., 0], idx[..., 1]] - np.log(lights.prod(-1))[None, :] - 3.0 * np.log(total)
+
+
+def shared_hue_logpdf(chrom: np.ndarray, lights: np.ndarray, by_hue: np.ndarray) -> np.ndarray:
+    """``log p(x_1..x_n | l)`` (M,) of the colours of one ``hsv`` texture, which share a
+    base hue: ``by_hue`` (K, bins, bins) holds the chromaticity log density given each of K
+    base hues spread evenly over [0, 1) (:func:`hsv_texture_albedos`), and the base hue is
+    integrated out (uniform prior)."""
+    from scipy.special import logsumexp
+    per_hue = scaled_chromaticity_logpdf(chrom, lights, by_hue).sum(1)      # (K, M)
+    return logsumexp(per_hue, axis=0) - np.log(len(by_hue))
 
 
 def posterior_mean_light(logp: np.ndarray, candidates: np.ndarray) -> np.ndarray:
