@@ -3,7 +3,7 @@ colour error of the network (issue 8's colour target).
 
 In a one-light scene of diffuse surfaces an image shows ``albedo x light colour``, so
 the light's colour is known only as well as the scene's surfaces average out to
-something known. Two measurements:
+something known. Four measurements:
 
 1. **Surfaces averaging out** (no rendering): the angle between the mean colour of N
    surfaces drawn from a prior and that prior's own mean colour, for each prior
@@ -20,8 +20,15 @@ something known. Two measurements:
    independently coloured object parts (from ``relight evaluate``'s ``per_image.csv``,
    the dataset's manifest and scene files).
 
+4. **The floor of each scene of a dataset** (``--floors DATA``): the surfaces each image
+   actually shows (an albedo render matched to the scene file's colours) and the ideal
+   observer under the generator's own priors (:func:`scene_floors`); with ``--eval``
+   beside a model's colour error on the same images.
+
     .venv/bin/python benchmarks/bench_colour_floor.py [--draws 2000]
         [--eval /root/relight-data/sid2-test-eval --data /root/relight-data/sid2-test]
+    .venv/bin/python benchmarks/bench_colour_floor.py --floors /root/relight-data/sid2p-test
+        --scenes 1000 [--eval EVAL]
 
 The floor at 2,000 scenes per count takes about 10 minutes on one core (the 300-surface
 posterior dominates); its means carry a standard error of 0.13 degree for one surface,
