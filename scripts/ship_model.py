@@ -287,6 +287,10 @@ def other_test_rows(other_evals: dict, test_card: dict) -> str:
         lines.append(f"| {name} (`{test_dir}`) | {', '.join(differs) or 'the seed only'} | {ev['n']} | "
                      + " | ".join(f"{o[m]['mean']:.2f}" for m in METRICS) + f" | {o['colour']['median']:.2f} | "
                      + ("-" if cover is None else f"{100 * cover:.1f}%") + " |")
+    lines.append("")
+    for name, (test_dir, _) in other_evals.items():   # how to make each set
+        cmd, note = generate_command(read_card(test_dir), test_dir, len(read_manifest(test_dir)))
+        lines.append(f"- {name}: `{cmd}`" + (f" ({note})" if note else ""))
     return "\n".join(lines)
 
 

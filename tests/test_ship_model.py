@@ -252,3 +252,4 @@ def test_card_of_a_run_on_two_folders(ship_model, world, tmp_path, monkeypatch, 
     assert "colour prior hsv" not in row and "32 px" not in row   # settings both sets share are left out
     assert " | ".join(f"{overall[m]['mean']:.2f}" for m in ("pan", "tilt", "direction", "colour")) in row
     assert f"--other-test munsell={other} " in card
+    assert f"- munsell: `relight generate --count 4 --out {other} --seed 23 " in card
