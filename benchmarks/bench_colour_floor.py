@@ -162,11 +162,9 @@ def visible_surfaces(spec, albedos: np.ndarray) -> tuple[list[np.ndarray], np.nd
     seen_tex = [np.unique(colours[seen & (owner == k)], axis=0) for k in range(len(textures))]
     parts = np.unique(np.array([c for o in spec.objects for c in o.colours], dtype=np.float64), axis=0)
     rest, rest_pixels = values[~hit & (values.sum(1) > 0)], pixels[~hit & (values.sum(1) > 0)]
-    u = rest / np.linalg.norm(rest, axis=1, keepdims=True)
-    p = parts / np.linalg.norm(parts, axis=1, keepdims=True)
-    cos = u @ p.T
+    cos = unit(rest) @ unit(parts).T
     nearest = cos.argmax(1)
-    hit = cos[np.arange(len(u)), nearest] > np.cos(np.radians(DIRECTION_TOL_DEG))
+    hit = cos[np.arange(len(rest)), nearest] > np.cos(np.radians(DIRECTION_TOL_DEG))
     seen_parts = parts[np.bincount(nearest[hit], weights=rest_pixels[hit], minlength=len(parts)) >= MIN_PIXELS]
     return seen_tex, seen_parts
 
