@@ -198,9 +198,8 @@ def ideal_observer_errors(n_surfaces: int, draws: int, candidates: np.ndarray,
     for i in range(draws):
         light = sample_light_colour(rng)[2]
         c = rng.uniform(lo, hi, (n_surfaces, 3)) * light
-        logp = box_direction_logpdf(c / np.linalg.norm(c, axis=1, keepdims=True), candidates, lo, hi).sum(0)
-        w = np.exp(logp - logp.max())
-        errs[i] = colour_error_deg((w[:, None] * candidates).sum(0), light)
+        logp = box_direction_logpdf(c / np.linalg.norm(c, axis=1, keepdims=True), candidates, lo, hi)
+        errs[i] = colour_error_deg(posterior_mean_light(logp, candidates), light)
     return errs
 
 
