@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import functools
 import os
 import sys
 
@@ -130,13 +131,17 @@ PATTERN_DIRECTION_TOL_DEG = 1.5   # pattern textures' colours, seen through blen
 VISIBLE_BINS = ((0, 9), (10, 29), (30, 99), (100, 299), (300, 100000))
 
 
+@functools.lru_cache(maxsize=1)
+def _albedo_integrator():
+    from relight import backend
+    return backend.mitsuba().load_dict({"type": "aov", "aovs": "albedo:albedo"})
+
+
 def albedo_image(builder, spec) -> np.ndarray:
     """The first-hit albedo of every pixel of a scene file's view, ``(H * W, 3)`` (Mitsuba's
-    ``aov`` integrator through the one render path, one sample per pixel)."""
-    from relight import backend
+    ``aov`` integrator, loaded once, through the one render path, one sample per pixel)."""
     from relight.render import render_scene
-    integrator = backend.mitsuba().load_dict({"type": "aov", "aovs": "albedo:albedo"})
-    img = render_scene(builder.template_for(spec).scene, spp=1, seed=0, integrator=integrator)
+    img = render_scene(builder.template_for(spec).scene, spp=1, seed=0, integrator=_albedo_integrator())
     return img[..., -3:].reshape(-1, 3).astype(np.float64)
 
 
