@@ -42,7 +42,7 @@ import numpy as np
 import torch
 
 from relight.errors import DatasetError, TrainingError
-from relight.net.data import LightDataset, dataset_folders, flip_image, flip_y
+from relight.net.data import LightDataset, dataset_folders, flip_image, flip_y, folders_record
 from relight.net.model import head_kappa
 from relight.net.uncertainty import direction_from_y, fit_temperature, uncertainty_summary, vmf_nll
 
@@ -222,8 +222,7 @@ def calibrate_kappa(model, data_dir, cfg: CalibrationConfig = CalibrationConfig(
     for p in model.parameters():
         p.requires_grad_(True)
     model.eval()
-    paths = [os.path.abspath(d) for d in folders]
-    return {"data_dir": paths[0] if len(paths) == 1 else paths, "split": cfg.split, "n_images": len(dataset),
+    return {"data_dir": folders_record(folders), "split": cfg.split, "n_images": len(dataset),
             "n_fit": int((~in_check).sum()), "n_check": int(in_check.sum()), "settings": asdict(cfg),
             "kept": kept, "best_step": best_step, "steps": max(0, len(curve) - 1), "temperature": temperature,
             "temperature_before": old_temperature, "check_before": before, "check_after": after}

@@ -79,6 +79,13 @@ def dataset_folders(data_dir) -> list[str]:
     return folders
 
 
+def folders_record(data_dir):
+    """What a run or calibration records of its data: the absolute path of one folder, or
+    the list of them for several (one folder stays a plain string, as before)."""
+    paths = [os.path.abspath(d) for d in dataset_folders(data_dir)]
+    return paths[0] if len(paths) == 1 else paths
+
+
 class LightDataset(Dataset):
     """Images and 7-vector targets of one split of one or several dataset folders.
 

@@ -39,7 +39,7 @@ import torch
 from relight.dataset import DatasetError
 from relight.errors import TrainingError
 from relight.fileio import FolderLock, atomic_write, write_json
-from relight.net.data import LightDataset, dataset_folders
+from relight.net.data import LightDataset, dataset_folders, folders_record
 from relight.net.evaluate import errors_from_y, run_model
 from relight.net.io import save_model
 from relight.net.loss import LossWeights, light_loss
@@ -133,10 +133,6 @@ class TrainConfig:
 
     def to_dict(self) -> dict:
         return asdict(self)
-
-
-def _abspaths(data_dir):
-    return os.path.abspath(data_dir) if isinstance(data_dir, str) else [os.path.abspath(d) for d in data_dir]
 
 
 def _check_resume_compatible(saved: dict, cfg: TrainConfig) -> None:
@@ -453,7 +449,7 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, 
         rows.append(row)
         if not writer:
             continue
-        info = {"epoch": epoch + 1, "val_loss": val_loss, "data_dir": _abspaths(cfg.data_dir),
+        info = {"epoch": epoch + 1, "val_loss": val_loss, "data_dir": folders_record(cfg.data_dir),
                 "n_train": seen, "settings": cfg.to_dict(),
                 **({"kappa_temperature": calibration["kappa_temperature"]} if calibration else {})}
         save_model(os.path.join(out_dir, "last.safetensors"), model, info)
