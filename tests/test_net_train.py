@@ -97,7 +97,9 @@ def test_predict_paths_agree(tiny, model_file, tmp_path):
     for p in files:
         np.testing.assert_allclose(p["y"], arr["y"], atol=SAME_INPUT_ATOL)
     assert files[0]["id"] == "a" and "sRGB" in files[0]["assumed"] and "linear" in files[1]["assumed"]
-    assert set(arr) == {"pan_deg", "tilt_deg", "rgb", "y", "cct_k", "duv", "kappa", "cone90_deg"}
+    assert set(arr) == {"pan_deg", "tilt_deg", "rgb", "y", "cct_k", "duv", "kappa", "cone90_deg",
+                        "camera_tilt_deg", "camera_tilt_source", "to_light_camera"}
+    assert arr["camera_tilt_deg"] == 30.0 and arr["camera_tilt_source"] == "given"
     assert np.linalg.norm(arr["rgb"]) == pytest.approx(1.0)
     assert 0 <= arr["pan_deg"] < 360
 

@@ -42,8 +42,10 @@ def add_commands(sub) -> None:
                         "--out at the same path (default: this process, see --workers)")
     g.add_argument("--config", default=None, help="JSON file of generator settings")
     g.add_argument("--mesh-dir", default=None, help="folder of your own .obj/.ply meshes (z up)")
-    g.add_argument("--preset", choices=["sid2", "mid"], default="sid2",
-                   help="sid2 (default): the paper's SID2-style images; mid: a MID-like set (indoor rooms, "
+    g.add_argument("--preset", choices=["sid2", "photo", "mid"], default="sid2",
+                   help="sid2 (default): the paper's SID2-style images; photo: the photo-training mix (level "
+                        "to steep cameras, 20-90 deg fields of view, low lights, half the scenes on a black void; "
+                        "docs/photo.md); mid: a MID-like set (indoor rooms, "
                         "chrome + gray sphere, a flash above the camera turned to 25 directions; --count is "
                         "the number of rooms, 25 images each; --config takes its settings; see README)")
     g.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -88,10 +90,7 @@ def cmd_generate(args) -> int:
     overrides = dict(res=args.res, spp=args.spp, max_depth=args.max_depth, sampler=args.sampler,
                      target_rmse=args.target_rmse, colour_prior=args.colour_prior, backgrounds=args.backgrounds,
                      object_parts=args.object_parts, mesh_dir=os.path.abspath(args.mesh_dir) if args.mesh_dir else None)
-    if args.config:
-        cfg = GeneratorConfig.from_file(args.config, **overrides)
-    else:
-        cfg = GeneratorConfig(**{k: v for k, v in overrides.items() if v is not None})
+    cfg = GeneratorConfig.from_file(args.config, preset=args.preset, **overrides)
     check_outputs([args.out], [args.config, args.mesh_dir])
     if args.scheduler is not None and args.workers != 1:
         from relight.dataset import DatasetError

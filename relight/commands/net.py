@@ -48,6 +48,15 @@ def add_commands(sub) -> None:
     t.add_argument("--images", choices=["visible", "masked"], default="visible",
                    help="MID-like datasets: train on the images as rendered (visible spheres) or on the "
                         "copies with both spheres painted out (default visible)")
+    t.add_argument("--camera-weight", type=at.float_in(0.0, 1e6, "a weight"), default=0.0,
+                   help="> 0 adds a camera-tilt head trained with this loss weight, so that predictions on "
+                        "photographs need no assumed camera tilt (default 0: no head; docs/photo.md)")
+    t.add_argument("--source", choices=["image", "exr"], default="image",
+                   help="train on the dataset's 8-bit PNGs (default) or on its linear EXRs (see --augment)")
+    t.add_argument("--augment", choices=["none", "photo"], default="none",
+                   help="camera-pipeline augmentation of --source exr at training time: photo = exposure "
+                        "+-2 EV, sensor noise, vignetting, blur, sRGB/gamma/filmic tone curves, JPEG 40-100 "
+                        "(default none: as the PNGs are written; relight/net/augment.py)")
     t.add_argument("--quiet", action="store_true", help="no progress bar")
     t.set_defaults(func=cmd_train)
 
@@ -65,6 +74,9 @@ def add_commands(sub) -> None:
     c.add_argument("--mode", default="head", choices=["head", "last", "temperature"],
                    help="refit the whole kappa head (default), only its last layer, or only a temperature")
     c.add_argument("--out", required=True, help="calibrated model file to write (.safetensors)")
+    c.add_argument("--ood", action="store_true",
+                   help="also fit the out-of-distribution detector on the split (predictions then carry "
+                        "ood / ood_score; flagged images get a 180-degree cone; relight/net/ood.py)")
     c.set_defaults(func=cmd_calibrate)
 
     e = sub.add_parser("evaluate", help="the paper's error tables of a model on a dataset split",
@@ -103,6 +115,7 @@ def cmd_train(args) -> int:
                       threads=args.torch_threads, workers=args.workers,
                       max_minutes=args.max_minutes, width=args.width, arch=args.arch,
                       kappa_detach=not args.kappa_into_features,
+                      camera_weight=float(args.camera_weight), source=args.source, augment=args.augment,
                       loss_weights=dataclasses.replace(args.loss_weights, kappa=args.kappa_weight))
     row = train(cfg, args.out, resume=args.resume, progress=not args.quiet)
     if row:
@@ -117,8 +130,8 @@ def cmd_calibrate(args) -> int:
     model_file = os.path.join(args.model, "best.safetensors") if os.path.isdir(args.model) else args.model
     check_outputs([args.out], [*args.data, args.model, model_file])
     check_file_target(args.out)
-    rep = calibrate_model_file(args.model, args.data, args.out, CalibrationConfig(split=args.split, mode=args.mode),
-                               progress=True)
+    rep = calibrate_model_file(args.model, args.data, args.out,
+                               CalibrationConfig(split=args.split, mode=args.mode, ood=args.ood), progress=True)
     b, a = rep["check_before"], rep["check_after"]
     fmt = (lambda s: f"NLL {s['nll_mean']:.3f}, 90% cone covers {100 * s['cone90_coverage']:.1f}%, Spearman "
                      + ("-" if s["spearman_cone90_error"] is None else f"{s['spearman_cone90_error']:.2f}"))
@@ -126,6 +139,9 @@ def cmd_calibrate(args) -> int:
           f"predictions), mode {args.mode}, {rep['best_step']} steps, temperature {rep['temperature']:.3f}")
     print(f"check part before: {fmt(b)}")
     print(f"check part after:  {fmt(a)}")
+    if "ood" in rep:
+        print(f"out-of-distribution detector: {rep['ood']['ood_dims']} components, threshold "
+              f"{rep['ood']['ood_threshold']:.3f} ({100 * rep['ood']['quantile']:g}% of {rep['ood']['n']} images below)")
     print(f"wrote {args.out}")
     return 0
 
@@ -174,7 +190,8 @@ def cmd_predict(args) -> int:
     model = load_model(args.model, mirror_average=args.mirror_average)
     files = list_images(args.images)
     check_outputs([args.out], files)
-    tilt = DEFAULT_CAMERA_TILT_DEG if args.camera_tilt is None else args.camera_tilt
+    own_tilt = args.camera_tilt is None and getattr(model, "has_camera", False)
+    tilt = None if own_tilt else (DEFAULT_CAMERA_TILT_DEG if args.camera_tilt is None else args.camera_tilt)
     preds = predict_files(model, files, tilt)
     grey = [p["id"] for p in preds if p.get("colour_reliable") is False]
     if grey:
@@ -182,16 +199,20 @@ def cmd_predict(args) -> int:
         names = ", ".join(grey[:3]) + (f" and {len(grey) - 3} more" if len(grey) > 3 else "")
         print(f"warning: {names}: grayscale image{'s' if len(grey) > 1 else ''}, the colour estimate is "
               'meaningless (marked "colour_reliable": false)', file=sys.stderr)
-    print(f"camera tilt assumed: {tilt:g} deg{' (default, as the paper for photographs)' if args.camera_tilt is None else ''}")
+    if own_tilt:
+        print("camera tilt: the model's own estimate per image (--camera-tilt overrides it)")
+    else:
+        print(f"camera tilt assumed: {tilt:g} deg{' (default, as the paper for photographs)' if args.camera_tilt is None else ''}")
     print(f"{'id':<20} {'pan_rel':>8} {'tilt':>7} {'cone90':>7}  {'rgb (unit)':<22} {'CCT K':>6} input")
     for p in preds:
         rgb = ",".join(f"{v:.3f}" for v in p["rgb"])
         cone = f"{p['cone90_deg']:7.1f}" if "cone90_deg" in p else f"{'-':>7}"
         cct = f"{p['cct_k']:6.0f}" if p["cct_k"] is not None else f"{'-':>6}"
         print(f"{p['id'][:20]:<20} {p['pan_deg']:8.1f} {p['tilt_deg']:7.1f} {cone}  {rgb:<22} {cct} {p['assumed']}")
-    fields = ("id", "pan_deg", "tilt_deg", "rgb", "y", "cct_k", "duv", "kappa", "cone90_deg", "colour_reliable")
+    fields = ("id", "pan_deg", "tilt_deg", "rgb", "y", "cct_k", "duv", "kappa", "cone90_deg", "colour_reliable",
+              "camera_tilt_deg", "to_light_camera", "ood", "ood_score")
     entries = [{k: p[k] for k in fields if k in p} | {"file": os.path.abspath(p["file"])} for p in preds]
-    write_predictions(args.out, entries, model=_model_label(args, "shipped"), camera_tilt_deg=tilt,
-                      inputs=files)
+    meta = {"camera_tilt_deg": tilt} if tilt is not None else {"camera_tilt": "predicted per image"}
+    write_predictions(args.out, entries, model=_model_label(args, "shipped"), inputs=files, **meta)
     print(f"wrote {args.out} ({len(entries)} predictions)")
     return 0

@@ -67,6 +67,8 @@ class CalibrationConfig:
             without a lower check NLL.
         seed: the fit/check division.
         batch_size: images per forward pass of the frozen network.
+        ood: also fit the out-of-distribution detector (:mod:`relight.net.ood`) on the
+            split's images (:func:`calibrate_model_file`).
     """
     split: str = "val"
     mode: str = "head"
@@ -78,6 +80,7 @@ class CalibrationConfig:
     patience: int = 200
     seed: int = 0
     batch_size: int = 64
+    ood: bool = False
 
     def __post_init__(self):
         if self.mode not in MODES:
@@ -239,5 +242,10 @@ def calibrate_model_file(model_path: str | os.PathLike, data_dir, out_path: str 
     info = dict(getattr(model, "info", {}) or {})
     info["kappa_temperature"] = report["temperature"]
     info["kappa_calibration"] = report | {"model": os.path.abspath(os.fspath(model_path))}
+    if cfg.ood:
+        from relight.net.ood import fit_ood
+        dataset = LightDataset(dataset_folders(data_dir), cfg.split, model.config.res, cache=False)
+        model, report["ood"] = fit_ood(model, dataset.batch(range(len(dataset))))
+        info["ood"] = report["ood"]
     save_model(out_path, model, info)
     return report

@@ -24,6 +24,26 @@ from torch.utils.data import Dataset
 from relight.dataset import SPLIT_CHOICES, DatasetError, read_manifest, safe_join, split_records
 
 SPLITS = SPLIT_CHOICES   # one split or "all"
+SOURCES = ("image", "exr")   # what a LightDataset reads: the 8-bit PNG, or the linear EXR
+
+
+def linear_at_res(path: str, res: int) -> np.ndarray:
+    """A linear EXR centre-cropped to a square and area-averaged to ``(res, res, 3)`` float32."""
+    import cv2
+
+    from relight.imageio import ImageError, read_exr
+    if not os.path.isfile(path):
+        raise DatasetError(f"dataset EXR missing: {path}")
+    try:
+        img = np.asarray(read_exr(path), dtype=np.float32)[..., :3]
+    except ImageError as exc:
+        raise DatasetError(f"dataset EXR: {exc}") from None
+    h, w = img.shape[:2]
+    side = min(h, w)
+    img = img[(h - side) // 2:(h - side) // 2 + side, (w - side) // 2:(w - side) // 2 + side]
+    if side != res:
+        img = cv2.resize(img, (res, res), interpolation=cv2.INTER_AREA if side > res else cv2.INTER_LINEAR)
+    return np.ascontiguousarray(img, dtype=np.float32)
 
 
 def prepare_srgb8(image_srgb8: np.ndarray, res: int) -> torch.Tensor:
@@ -100,12 +120,16 @@ class LightDataset(Dataset):
 
     def __init__(self, data_dir, split: str = "train", res: int = 128,
                  flip: bool = False, seed: int = 0, cache: bool = True, records: list[dict] | None = None,
-                 image_key: str = "image"):
+                 image_key: str = "image", source: str = "image", augment=None):
         self.data_dirs = dataset_folders(data_dir)
         self.data_dir = self.data_dirs[0]
         if records is not None and len(self.data_dirs) > 1:
             raise ValueError("records= needs a single dataset folder")
         self.image_key = image_key   # the record field naming the image ("image_masked": MID-like, spheres out)
+        if source not in SOURCES:
+            raise ValueError(f"source must be one of {', '.join(SOURCES)}, got {source!r}")
+        self.source = source         # "image": the 8-bit PNG; "exr": the linear EXR through ``augment``
+        self.augment = augment       # a relight.net.augment.PipelineAugment (source "exr"), or None
         self.split = split
         self.res, self.flip, self.seed, self.cache = res, flip, seed, cache
         self.epoch = 0
@@ -137,10 +161,23 @@ class LightDataset(Dataset):
         return len(self.records)
 
     def unaugmented(self) -> LightDataset:
-        """The same records without flip augmentation (shares the image cache)."""
+        """The same records without flip or pipeline augmentation (shares the image cache)."""
         twin = copy.copy(self)
         twin.flip = False
+        twin.augment = None
         return twin
+
+    def linear_image(self, i: int) -> np.ndarray:
+        """The record's linear EXR at network size, ``(res, res, 3)`` float32 (centre-cropped,
+        area-averaged; cached as float16)."""
+        rec, folder = self.records[i], self._folder[i]
+        key = (folder, rec["id"], "exr")
+        img = self._cache.get(key)
+        if img is None:
+            img = linear_at_res(safe_join(self.data_dirs[folder], rec["exr"]), self.res).astype(np.float16)
+            if self.cache:
+                self._cache[key] = img
+        return img.astype(np.float32)
 
     def image_srgb8(self, i: int) -> np.ndarray:
         """The record's image at network size, ``(res, res, 3)`` uint8 (cached)."""
@@ -170,8 +207,16 @@ class LightDataset(Dataset):
         return bool(np.random.default_rng([self.seed, self.epoch, i]).random() < 0.5)
 
     def image_tensor(self, i: int) -> torch.Tensor:
-        """The network input of item ``i``: ``(3, res, res)`` float32 in [0, 1], not mirrored."""
-        return torch.from_numpy(self.image_srgb8(i).transpose(2, 0, 1).astype(np.float32) / 255.0)
+        """The network input of item ``i``: ``(3, res, res)`` float32 in [0, 1], not mirrored.
+        With source ``exr`` and an ``augment`` pipeline, the linear image goes through a
+        camera pipeline drawn from ``(seed, epoch, i)`` (a resumed run sees the same)."""
+        if self.source == "exr":
+            from relight.net.augment import PipelineAugment
+            pipeline = self.augment or PipelineAugment.none()
+            srgb8 = pipeline.apply(self.linear_image(i), np.random.default_rng([self.seed, self.epoch, i, 1]))
+        else:
+            srgb8 = self.image_srgb8(i)
+        return torch.from_numpy(srgb8.transpose(2, 0, 1).astype(np.float32) / 255.0)
 
     def batch(self, items) -> torch.Tensor:
         """:meth:`image_tensor` of ``items``, stacked ``(B, 3, res, res)``."""

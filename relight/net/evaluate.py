@@ -29,30 +29,44 @@ from relight.net.data import LightDataset
 COLOUR_STATS = ("mean", "median", "trimean", "best25", "worst25")
 
 
-def run_model(model, dataset: LightDataset, batch_size: int = 64, with_kappa: bool = False):
+def run_model(model, dataset: LightDataset, batch_size: int = 64, with_kappa: bool = False,
+              with_camera: bool = False):
     """Raw network outputs ``(N, 7)`` float64 for every item of ``dataset`` (eval mode,
     no augmentation); the model's train/eval mode is restored afterwards. With
     ``with_kappa``: ``(y, kappa)``, kappa the calibrated direction concentration ``(N,)``
-    (None for a model without a kappa head)."""
+    (None for a model without a kappa head). With ``with_camera`` too: ``(y, kappa,
+    camera_tilt_deg)``, the predicted camera tilt ``(N,)`` in degrees (None for a model
+    without a camera head)."""
+    from relight.net.model import camera_tilt_deg
     was_training = model.training
     model.eval()
-    out, kappas = [], []
+    out, kappas, cameras = [], [], []
     try:
         with torch.no_grad():
             for start in range(0, len(dataset), batch_size):
                 idx = range(start, min(start + batch_size, len(dataset)))
                 x = dataset.batch(idx)
-                y, kappa = model.forward_with_kappa(x) if with_kappa else (model(x), None)
+                if with_camera:
+                    y, kappa, camera = model.forward_full(x)
+                else:
+                    y, kappa = model.forward_with_kappa(x) if with_kappa else (model(x), None)
+                    camera = None
                 out.append(y.double().numpy())
                 if kappa is not None:
                     kappas.append(kappa.double().numpy())
+                if camera is not None:
+                    cameras.append(camera_tilt_deg(camera).double().numpy())
     finally:
         model.train(was_training)
     y = np.concatenate(out) if out else np.zeros((0, 7))
-    if not with_kappa:
+    if not with_kappa and not with_camera:
         return y
     has_kappa = getattr(model, "has_kappa", False)
-    return y, (np.concatenate(kappas) if kappas else np.zeros(0)) if has_kappa else None
+    kappa = (np.concatenate(kappas) if kappas else np.zeros(0)) if has_kappa else None
+    if not with_camera:
+        return y, kappa
+    has_camera = getattr(model, "has_camera", False)
+    return y, kappa, (np.concatenate(cameras) if cameras else np.zeros(0)) if has_camera else None
 
 
 def decode_outputs(y_pred: np.ndarray, camera_tilt_deg) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

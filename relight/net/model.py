@@ -58,6 +58,10 @@ class NetConfig:
         kappa_head: predict the vMF concentration of the direction too.
         kappa_detach: the kappa head reads the embedding detached (its loss leaves the
             encoder to the paper's terms); False lets it shape the shared features.
+        camera_head: predict the camera tilt too (sin, cos of tilt_c), so that a photograph
+            needs no assumed camera tilt (:meth:`LightNet.forward_full`).
+        ood_dims: principal components of the out-of-distribution detector
+            (:mod:`relight.net.ood`; 0: none fitted).
     """
     res: int = 128
     width: int = 32
@@ -67,17 +71,21 @@ class NetConfig:
     arch: str = "small"
     kappa_head: bool = True
     kappa_detach: bool = True
+    camera_head: bool = False
+    ood_dims: int = 0
 
     def __post_init__(self):
         for name in ("res", "width", "embed", "head_hidden", "grid"):
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or v < 1:
                 raise ValueError(f"NetConfig.{name} must be a positive integer, got {v!r}")
+        if not isinstance(self.ood_dims, int) or isinstance(self.ood_dims, bool) or self.ood_dims < 0:
+            raise ValueError(f"NetConfig.ood_dims must be an integer >= 0, got {self.ood_dims!r}")
         if self.res < 16:
             raise ValueError(f"NetConfig.res must be >= 16 pixels, got {self.res}")
         if self.arch not in ARCHES:
             raise ValueError(f"NetConfig.arch must be one of {', '.join(ARCHES)}, got {self.arch!r}")
-        for name in ("kappa_head", "kappa_detach"):
+        for name in ("kappa_head", "kappa_detach", "camera_head"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"NetConfig.{name} must be true or false, got {getattr(self, name)!r}")
 
@@ -278,6 +286,14 @@ class LightNet(nn.Module):
             # temperature of the calibrated kappa (kappa / T), fitted on val: see
             # relight.net.uncertainty.fit_temperature; stored with the weights
             self.register_buffer("kappa_temperature", torch.ones(()))
+        if config.camera_head:
+            self.camera_head = _head(config.embed, config.head_hidden, 2)
+        if config.ood_dims:   # the out-of-distribution detector's statistics (relight.net.ood.fit_ood)
+            self.register_buffer("ood_mean", torch.zeros(config.embed))
+            self.register_buffer("ood_basis", torch.zeros(config.ood_dims, config.embed))
+            self.register_buffer("ood_scale", torch.ones(config.ood_dims))
+            self.register_buffer("ood_residual", torch.ones(()))
+            self.register_buffer("ood_threshold", torch.full((), 1e4))   # set by fit_ood
         self.reset_parameters()
 
     def reset_parameters(self) -> None:
@@ -319,19 +335,32 @@ class LightNet(nn.Module):
         """``(N, 3, H, W)`` in [0, 1] -> ``(N, 7)`` = pan sin/cos, tilt sin/cos, rgb."""
         return self._light(self.encode(x))
 
+    @property
+    def has_camera(self) -> bool:
+        """True when the network predicts the camera tilt (camera head)."""
+        return self.config.camera_head
+
+    def forward_full(self, x: torch.Tensor, calibrated: bool = True):
+        """``(y (N, 7), kappa (N,) or None, camera (N, 2) or None)``: :meth:`forward_with_kappa`
+        and, with a camera head, ``(sin tilt_c, cos tilt_c)`` of the predicted camera tilt
+        (unnormalised; :func:`camera_tilt_deg` turns it into degrees)."""
+        e = self.encode(x)
+        y = self._light(e)
+        kappa = None
+        if self.config.kappa_head:
+            kappa = head_kappa(self.kappa_head, e.detach() if self.config.kappa_detach else e)
+            if calibrated:
+                kappa = kappa / self.kappa_temperature
+        camera = self.camera_head(e) if self.config.camera_head else None
+        return y, kappa, camera
+
     def forward_with_kappa(self, x: torch.Tensor, calibrated: bool = True):
         """``(y (N, 7), kappa (N,))``; kappa is the vMF concentration of the light
         direction (1 / steradian scale; ``None`` without a kappa head), divided by the
         fitted temperature when ``calibrated``. The kappa head reads the embedding
         detached (unless ``config.kappa_detach`` is False): its loss then does not
         reach the encoder or the other heads."""
-        e = self.encode(x)
-        y = self._light(e)
-        if not self.config.kappa_head:
-            return y, None
-        kappa = head_kappa(self.kappa_head, e.detach() if self.config.kappa_detach else e)
-        if calibrated:
-            kappa = kappa / self.kappa_temperature
+        y, kappa, _ = self.forward_full(x, calibrated)
         return y, kappa
 
 
@@ -396,12 +425,29 @@ class MirrorAveraged(nn.Module):
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return self.forward_with_kappa(x)[0]
 
-    def forward_with_kappa(self, x: torch.Tensor, calibrated: bool = True):
+    @property
+    def has_camera(self) -> bool:
+        return self.net.has_camera
+
+    def forward_full(self, x: torch.Tensor, calibrated: bool = True):
+        """As :meth:`LightNet.forward_full`, each output the mean over the image and its
+        mirror (the camera tilt is the same in both)."""
         from relight.net.data import flip_image, flip_y
         n = x.shape[0]
-        y, kappa = self.net.forward_with_kappa(torch.cat([x, flip_image(x)]), calibrated)
+        y, kappa, camera = self.net.forward_full(torch.cat([x, flip_image(x)]), calibrated)
         y = (y[:n] + flip_y(y[n:])) / 2
-        return y, None if kappa is None else (kappa[:n] + kappa[n:]) / 2
+        kappa = None if kappa is None else (kappa[:n] + kappa[n:]) / 2
+        camera = None if camera is None else (camera[:n] + camera[n:]) / 2
+        return y, kappa, camera
+
+    def forward_with_kappa(self, x: torch.Tensor, calibrated: bool = True):
+        y, kappa, _ = self.forward_full(x, calibrated)
+        return y, kappa
+
+
+def camera_tilt_deg(camera: torch.Tensor) -> torch.Tensor:
+    """Camera tilt in degrees ``(N,)`` from a camera head's ``(N, 2)`` = (sin, cos) output."""
+    return torch.rad2deg(torch.atan2(camera[:, 0], camera[:, 1]))
 
 
 def head_kappa(head: nn.Module, e: torch.Tensor) -> torch.Tensor:

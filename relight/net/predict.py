@@ -66,39 +66,69 @@ def load_model(path: str | os.PathLike | None = None, mirror_average: bool = Fal
 
 def _predict_inputs(model, inputs: list[torch.Tensor], camera_tilt_deg, batch_size: int = 32,
                     achromatic: list[bool] | None = None) -> list[dict]:
-    tilts = np.asarray(camera_tilt_deg, dtype=np.float64).reshape(-1)
-    if tilts.size != len(inputs):
-        raise ValueError(f"expected one camera tilt per image ({len(inputs)}), got {tilts.size}")
-    if not np.all(np.isfinite(tilts)):
-        raise ValueError("camera tilts must be finite degrees")
+    """Predictions of network inputs. ``camera_tilt_deg``: one tilt per input (degrees), or
+    None: the tilt the model's camera head predicts per image (a model without one: the
+    paper's assumption, :data:`DEFAULT_CAMERA_TILT_DEG`)."""
+    from relight.net.model import camera_tilt_deg as head_tilt_deg
+    from relight.net.ood import ood_fields
+    has_camera = bool(getattr(model, "has_camera", False))
+    if camera_tilt_deg is not None:
+        tilts = np.asarray(camera_tilt_deg, dtype=np.float64).reshape(-1)
+        if tilts.size != len(inputs):
+            raise ValueError(f"expected one camera tilt per image ({len(inputs)}), got {tilts.size}")
+        if not np.all(np.isfinite(tilts)):
+            raise ValueError("camera tilts must be finite degrees")
     model.eval()
-    ys, kappas = [], []
+    ys, kappas, cameras, embeds = [], [], [], []
     with torch.no_grad():
         for s in range(0, len(inputs), batch_size):
-            y, kappa = model.forward_with_kappa(torch.stack(inputs[s:s + batch_size]))
+            batch = torch.stack(inputs[s:s + batch_size])
+            if has_camera:
+                y, kappa, camera = model.forward_full(batch)
+                cameras.append(head_tilt_deg(camera).double().numpy())
+            else:
+                y, kappa = model.forward_with_kappa(batch)
             ys.append(y.double().numpy())
             if kappa is not None:
                 kappas.append(kappa.double().numpy())
     if not ys:
         return []
     y = np.concatenate(ys)
+    how = "given"
+    if camera_tilt_deg is None:
+        if has_camera:
+            tilts, how = np.clip(np.concatenate(cameras), -89.0, 89.0), "predicted"
+        else:
+            tilts, how = np.full(len(inputs), DEFAULT_CAMERA_TILT_DEG), "assumed"
     pan, tilt, rgb = decode_outputs(y, tilts)
     extras = extra_fields(rgb, np.concatenate(kappas) if kappas else None)
     for i, grey in enumerate(achromatic or []):
         if grey:
             extras[i]["colour_reliable"] = False
-    return [{"pan_deg": float(pan[i]), "tilt_deg": float(tilt[i]), "rgb": [float(v) for v in rgb[i]],
-             "y": [float(v) for v in y[i]], **extras[i]} for i in range(len(inputs))]
+    oods = ood_fields(model, torch.stack(inputs)) if len(inputs) else None
+    out = []
+    for i in range(len(inputs)):
+        tilt_c = float(np.clip(tilts[i], -89.0, 89.0))
+        to_cam = frames.world_to_camera(frames.direction(float(pan[i]), float(tilt[i])), tilt_c)
+        entry = {"pan_deg": float(pan[i]), "tilt_deg": float(tilt[i]), "rgb": [float(v) for v in rgb[i]],
+                 "y": [float(v) for v in y[i]], **extras[i],
+                 "camera_tilt_deg": float(tilts[i]), "camera_tilt_source": how,
+                 "to_light_camera": [float(v) for v in to_cam]}
+        if oods is not None:
+            entry.update(oods[i])
+        out.append(entry)
+    return out
 
 
-def predict_arrays(model, images_linear: list[np.ndarray], camera_tilt_deg: list[float]) -> list[dict]:
+def predict_arrays(model, images_linear: list[np.ndarray], camera_tilt_deg: list[float] | None) -> list[dict]:
     """Predict light of linear images.
 
     Args:
         model: from :func:`load_model`.
         images_linear: ``(H, W, 3)`` float arrays, linear RGB (any size; encoded with
             ``to_srgb8`` then centre-cropped and resized like the training images).
-        camera_tilt_deg: one camera tilt (degrees) per image, used for decoding.
+        camera_tilt_deg: one camera tilt (degrees) per image, used for decoding; None: the
+            model's own prediction (camera head), else the paper's 45 degrees.
 
     Returns:
         One dict per image: ``pan_deg`` (light pan relative to the camera, [0, 360),
@@ -106,7 +136,10 @@ def predict_arrays(model, images_linear: list[np.ndarray], camera_tilt_deg: list
         (unit norm, linear), ``y`` (the raw 7-vector), ``cct_k`` and ``duv`` (None
         where the colour is far from the Planckian locus) and, for a model with a
         kappa head, ``kappa`` and ``cone90_deg`` (radius of the 90% cone, degrees);
-        ``colour_reliable`` = False for a grayscale image (:func:`is_achromatic`).
+        ``colour_reliable`` = False for a grayscale image (:func:`is_achromatic`);
+        ``camera_tilt_deg`` and ``camera_tilt_source`` (given / predicted / assumed),
+        ``to_light_camera`` (unit vector, camera frame: x right, y up, z toward the camera)
+        and, for a model with an out-of-distribution detector, ``ood`` and ``ood_score``.
     """
     from relight.imageio import to_srgb8
     res = model.config.res
@@ -166,15 +199,17 @@ def image_ids(files: list[str]) -> list[str]:
     return out
 
 
-def predict_files(model, files: list[str], camera_tilt_deg: float = DEFAULT_CAMERA_TILT_DEG) -> list[dict]:
+def predict_files(model, files: list[str], camera_tilt_deg: float | None = None) -> list[dict]:
     """Predictions for image files; each dict also has ``id``, ``file`` and ``assumed``
     (how its pixels were interpreted), and ``colour_reliable`` = False for a grayscale
-    image (:func:`is_achromatic`)."""
+    image (:func:`is_achromatic`). ``camera_tilt_deg`` None: the model's own estimate
+    (camera head), else the paper's 45 degrees."""
     inputs, assumed, achromatic = [], [], []
     for f in files:
         x, how, grey = _read_input(f, model.config.res)
         inputs.append(x)
         assumed.append(how)
         achromatic.append(grey)
-    preds = _predict_inputs(model, inputs, [camera_tilt_deg] * len(files), achromatic=achromatic)
+    tilts = None if camera_tilt_deg is None else [camera_tilt_deg] * len(files)
+    preds = _predict_inputs(model, inputs, tilts, achromatic=achromatic)
     return [{"id": i, **p, "file": f, "assumed": a} for i, p, f, a in zip(image_ids(files), preds, files, assumed)]

@@ -52,7 +52,7 @@ LOG = "log.csv"
 LOG_FIELDS = ["epoch", "lr", "n_train", "n_val", "train_loss", "train_pan", "train_tilt", "train_colour_rad",
               "val_loss", "val_pan_deg", "val_tilt_deg", "val_direction_deg", "val_colour_deg",
               "epoch_time_s", "train_img_per_s", "train_kappa_nll", "val_kappa_nll", "val_cone90_cover",
-              "kappa_temperature"]
+              "kappa_temperature", "train_camera", "val_camera_tilt_deg"]
 
 
 @dataclass(frozen=True)
@@ -83,6 +83,13 @@ class TrainConfig:
             the loaded model before any step is written to settings.json (``init_val_loss``).
         image_key: the record field of the input image (``image_masked``: the MID-like
             set's copies with the spheres painted out).
+        camera_weight: > 0 adds a camera-tilt head (``NetConfig.camera_head``) trained by the
+            MSE of (sin, cos) of the camera tilt, with this weight (also in the val loss).
+        source: ``"image"`` (the dataset's 8-bit PNGs) or ``"exr"`` (its linear EXRs, through
+            ``augment``).
+        augment: camera-pipeline augmentation of an ``exr`` source, a key of
+            :data:`relight.net.augment.AUGMENTS` (``"none"``: as the PNGs are written;
+            ``"photo"``: exposure, noise, vignetting, blur, tone curve, JPEG).
         max_minutes: stop after the first epoch that ends past this wall time
             (minutes from the start of this invocation; None: no limit). A later
             ``resume`` continues from there.
@@ -107,6 +114,9 @@ class TrainConfig:
     kappa_detach: bool = True
     init: str | None = None
     image_key: str = "image"
+    camera_weight: float = 0.0
+    source: str = "image"
+    augment: str = "none"
 
     def __post_init__(self):
         folders = tuple(dataset_folders(self.data_dir))   # one folder stays a plain string (older runs)
@@ -128,6 +138,15 @@ class TrainConfig:
             raise TrainingError(f"arch must be one of {', '.join(ARCHES)}, got {self.arch!r}")
         if not (isinstance(self.lr, float) and 0 < self.lr < 1):
             raise TrainingError(f"lr must be in (0, 1), got {self.lr!r}")
+        if not (isinstance(self.camera_weight, (int, float)) and 0 <= self.camera_weight < math.inf):
+            raise TrainingError(f"camera_weight must be a finite number >= 0, got {self.camera_weight!r}")
+        from relight.net.augment import AUGMENTS
+        from relight.net.data import SOURCES
+        if self.source not in SOURCES or self.augment not in AUGMENTS:
+            raise TrainingError(f"source must be one of {', '.join(SOURCES)} and augment one of "
+                                f"{', '.join(AUGMENTS)}, got {self.source!r} and {self.augment!r}")
+        if self.augment != "none" and self.source != "exr":
+            raise TrainingError("--augment works on the linear EXRs: give --source exr")
         if self.image_key not in ("image", "image_masked"):
             raise TrainingError(f"image_key must be 'image' or 'image_masked', got {self.image_key!r}")
 
@@ -136,9 +155,14 @@ class TrainConfig:
 
 
 def _check_resume_compatible(saved: dict, cfg: TrainConfig) -> None:
-    for key in ("res", "batch_size", "seed", "width", "flip", "arch", "kappa_detach", "init", "image_key"):
-        if key in saved and saved[key] != getattr(cfg, key):
+    for key in ("res", "batch_size", "seed", "width", "flip", "arch", "kappa_detach", "init", "image_key",
+                "camera_weight"):
+        if saved.get(key, LATER_DEFAULTS.get(key)) != getattr(cfg, key) and (key in saved or key in LATER_DEFAULTS):
             raise TrainingError(f"cannot resume: {key} was {saved[key]!r} in this run, now {getattr(cfg, key)!r}")
+
+
+# Settings added after the first runs: a settings.json without the key means this value.
+LATER_DEFAULTS = {"camera_weight": 0.0, "source": "image", "augment": "none"}
 
 
 def net_config(cfg: TrainConfig, saved: dict | None = None) -> NetConfig:
@@ -146,15 +170,33 @@ def net_config(cfg: TrainConfig, saved: dict | None = None) -> NetConfig:
     settings describe (runs from before the kappa head and ``arch`` continue as they were)."""
     if saved is None:
         return NetConfig.for_arch(cfg.arch, res=cfg.res, width=cfg.width,
-                                  kappa_head=cfg.loss_weights.kappa > 0, kappa_detach=cfg.kappa_detach)
+                                  kappa_head=cfg.loss_weights.kappa > 0, kappa_detach=cfg.kappa_detach,
+                                  camera_head=cfg.camera_weight > 0)
     weights = saved.get("loss_weights") or {}
     return NetConfig.for_arch(saved.get("arch", "small"), res=cfg.res, width=cfg.width,
                               kappa_head=float(weights.get("kappa", 0.0)) > 0,
-                              kappa_detach=bool(saved.get("kappa_detach", True)))
+                              kappa_detach=bool(saved.get("kappa_detach", True)),
+                              camera_head=float(saved.get("camera_weight", 0.0)) > 0)
 
 
 def _camera_tilts(dataset: LightDataset, index) -> torch.Tensor:
     return torch.tensor([float(dataset.records[int(i)]["camera"]["tilt_deg"]) for i in index])
+
+
+def camera_loss(camera: torch.Tensor, camera_tilt_deg: torch.Tensor) -> torch.Tensor:
+    """MSE of a camera head's ``(N, 2)`` output against (sin, cos) of the true tilts ``(N,)`` (degrees)."""
+    t = torch.deg2rad(camera_tilt_deg.to(camera.dtype))
+    return torch.mean((camera - torch.stack([torch.sin(t), torch.cos(t)], dim=1)) ** 2)
+
+
+def with_camera_head(model: LightNet) -> LightNet:
+    """A copy of ``model`` with a new (He-initialised) camera-tilt head; every other weight kept."""
+    import dataclasses
+    grown = LightNet(dataclasses.replace(model.config, camera_head=True))
+    missing, unexpected = grown.load_state_dict(model.state_dict(), strict=False)
+    if unexpected or any(not k.startswith("camera_head.") for k in missing):
+        raise TrainingError("cannot add a camera head to this model")
+    return grown
 
 
 def _epoch_order(n: int, seed: int, epoch: int) -> list[int]:
@@ -224,7 +266,7 @@ def distributed_rank_world() -> tuple[int, int]:
 
 
 class _KappaForward(torch.nn.Module):
-    """``forward`` = ``net.forward_with_kappa(x, calibrated=False)``, so that
+    """``forward`` = ``net.forward_full(x, calibrated=False)``, so that
     DistributedDataParallel (which hooks ``forward``) sees the training pass."""
 
     def __init__(self, net):
@@ -232,7 +274,7 @@ class _KappaForward(torch.nn.Module):
         self.net = net
 
     def forward(self, x):
-        return self.net.forward_with_kappa(x, calibrated=False)
+        return self.net.forward_full(x, calibrated=False)
 
 
 def _ddp_agree(dataset: LightDataset) -> None:
@@ -295,7 +337,7 @@ def _same_run(saved: dict, cfg: TrainConfig) -> bool:
     """True when ``saved`` (settings.json) holds the settings of ``cfg`` (the identical command),
     apart from the machine resources it uses (``RESOURCE_KEYS``)."""
     now = json.loads(json.dumps(cfg.to_dict()))
-    return all(saved.get(k) == v for k, v in now.items() if k not in RESOURCE_KEYS)
+    return all(saved.get(k, LATER_DEFAULTS.get(k)) == v for k, v in now.items() if k not in RESOURCE_KEYS)
 
 
 def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, ddp=None) -> dict:
@@ -329,9 +371,13 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, 
         if init_model.config.res != cfg.res:
             raise TrainingError(f"--init model takes {init_model.config.res} px inputs; give --res "
                                 f"{init_model.config.res}")
+        if cfg.camera_weight > 0 and not init_model.has_camera:   # a new camera head on the loaded network
+            init_model = with_camera_head(init_model)
+    from relight.net.augment import AUGMENTS
     train_set = LightDataset(cfg.data_dir, cfg.train_split, cfg.res, flip=cfg.flip, seed=cfg.seed,
-                             image_key=cfg.image_key)
-    val_set = LightDataset(cfg.data_dir, cfg.val_split, cfg.res, image_key=cfg.image_key)
+                             image_key=cfg.image_key, source=cfg.source,
+                             augment=AUGMENTS[cfg.augment]() if cfg.augment != "none" else None)
+    val_set = LightDataset(cfg.data_dir, cfg.val_split, cfg.res, image_key=cfg.image_key, source=cfg.source)
     if ddp is not None:
         _ddp_agree(train_set), _ddp_agree(val_set)
     if len(train_set) == 0:
@@ -403,13 +449,19 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, 
         loader = DataLoader(train_set, batch_size=cfg.batch_size, num_workers=cfg.workers,
                             sampler=sampler, drop_last=False)
         model.train()
-        sums, seen, t0 = {"total": 0.0, "pan": 0.0, "tilt": 0.0, "colour": 0.0, "kappa_nll": 0.0}, 0, time.perf_counter()
+        sums, seen, t0 = {"total": 0.0, "pan": 0.0, "tilt": 0.0, "colour": 0.0, "kappa_nll": 0.0,
+                          "camera": 0.0}, 0, time.perf_counter()
         bar = tqdm(loader, desc=f"epoch {epoch + 1}/{cfg.epochs}", disable=not progress, leave=False,
                    dynamic_ncols=True)
         for x, y, index in bar:
-            y_pred, kappa = model.forward_with_kappa(x, calibrated=False) if net is None else net(x)
+            y_pred, kappa, camera = model.forward_full(x, calibrated=False) if net is None else net(x)
+            tilts = _camera_tilts(train_set, index)
             parts = light_loss(y_pred, y, cfg.loss_weights, parts=True, kappa=kappa,
-                               camera_tilt_deg=_camera_tilts(train_set, index) if kappa is not None else None)
+                               camera_tilt_deg=tilts if kappa is not None else None)
+            parts["camera"] = None
+            if camera is not None:
+                parts["camera"] = camera_loss(camera, tilts)
+                parts["objective"] = parts["objective"] + cfg.camera_weight * parts["camera"]
             optimiser.zero_grad(set_to_none=True)
             parts["objective"].backward()
             optimiser.step()
@@ -425,12 +477,21 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, 
             for buffer in model.buffers():   # batch-norm statistics: rank 0's, as DDP's forward does
                 dist.broadcast(buffer, 0)
         train_time = time.perf_counter() - t0
-        y_val, kappa_val = run_model(model, evaluation_set, cfg.batch_size * 4, with_kappa=True)
+        y_val, kappa_val, camera_val = run_model(model, evaluation_set, cfg.batch_size * 4, with_kappa=True,
+                                                 with_camera=True)
         with torch.no_grad():
             val_loss = float(light_loss(torch.from_numpy(y_val),
                                         torch.from_numpy(np.stack([evaluation_set.target(i) for i in
                                                                    range(len(evaluation_set))])).float(),
                                         cfg.loss_weights))
+        camera_log = {}
+        if camera_val is not None:
+            true_tilts = evaluation_set.truth()["camera_tilt_deg"]
+            camera_log = {"train_camera": sums["camera"] / seen,
+                          "val_camera_tilt_deg": float(np.mean(np.abs(camera_val - true_tilts)))}
+            val_loss += cfg.camera_weight * float(camera_loss(
+                torch.from_numpy(np.stack([np.sin(np.radians(camera_val)), np.cos(np.radians(camera_val))], 1)),
+                torch.from_numpy(true_tilts)))
         errs = errors_from_y(y_val, evaluation_set.truth())
         calibration = {}
         if kappa_val is not None:   # temperature scaling of kappa on val (the model stores T)
@@ -445,7 +506,8 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, 
                "n_val": len(evaluation_set), "train_loss": sums["total"] / seen, "train_pan": sums["pan"] / seen,
                "train_tilt": sums["tilt"] / seen, "train_colour_rad": sums["colour"] / seen, "val_loss": val_loss,
                **{f"val_{m}_deg": float(np.mean(e)) for m, e in errs.items()},
-               "epoch_time_s": time.perf_counter() - t0, "train_img_per_s": seen / train_time, **calibration}
+               "epoch_time_s": time.perf_counter() - t0, "train_img_per_s": seen / train_time, **calibration,
+               **camera_log}
         rows.append(row)
         if not writer:
             continue

@@ -75,6 +75,11 @@ class GeneratorConfig:
     split: tuple[float, float, float] = (0.8, 0.1, 0.1)
     mesh_dir: str | None = None
     mesh_fraction: float = 0.5   # share of objects taken from mesh_dir when given
+    # Photo-like variation (None / 0: off, and the draws of every image are exactly as before)
+    fov_range_deg: tuple[float, float] | None = None     # field of view drawn per image (else fov_deg)
+    view_halfwidth_m: tuple[float, float] | None = None  # half-width of the view at the scene centre,
+    #                                                      drawn per image; sets the camera distance
+    void_fraction: float = 0.0   # share of scenes on a near-black void (walls and floor of albedo <= VOID_ALBEDO)
 
     def __post_init__(self):
         def rng_ok(name, lo_min, hi_max):
@@ -116,18 +121,27 @@ class GeneratorConfig:
         unknown = set(self.families) - set(shapes.FAMILIES)
         if unknown:
             raise ConfigError(f"unknown shape families {sorted(unknown)}; valid: {', '.join(shapes.FAMILIES)}")
+        if self.fov_range_deg is not None:
+            rng_ok("fov_range_deg", 5, 120)
+        if self.view_halfwidth_m is not None:
+            rng_ok("view_halfwidth_m", 0.5, 100)
+        if not (isinstance(self.void_fraction, (int, float)) and 0.0 <= self.void_fraction <= 1.0):
+            raise ConfigError(f"void_fraction: expected a number in [0, 1], got {self.void_fraction!r}")
         if self.mesh_dir is not None and not mesh_files(self.mesh_dir):
             raise ConfigError(f"--mesh-dir {self.mesh_dir}: no .obj or .ply files found")
 
     @classmethod
-    def from_file(cls, path: str, **overrides) -> "GeneratorConfig":
-        """Load a JSON config (keys as the fields); ``overrides`` win over the file."""
-        data = read_config_file(path)
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = set(data) - names
-        if unknown:
-            raise ConfigError(f"config {path}: unknown keys {sorted(unknown)}")
-        data = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
+    def from_file(cls, path: str | None, preset: str | None = None, **overrides) -> "GeneratorConfig":
+        """Settings of a named preset (:data:`PRESETS`; ``None``: the defaults), then a JSON
+        config file (keys as the fields; ``None``: no file), then ``overrides`` (not None)."""
+        data = dict(PRESETS[preset]) if preset in PRESETS else {}
+        if path is not None:
+            found = read_config_file(path)
+            names = {f.name for f in dataclasses.fields(cls)}
+            unknown = set(found) - names
+            if unknown:
+                raise ConfigError(f"config {path}: unknown keys {sorted(unknown)}")
+            data.update({k: tuple(v) if isinstance(v, list) else v for k, v in found.items()})
         data.update({k: v for k, v in overrides.items() if v is not None})
         return cls(**data)
 
@@ -139,6 +153,19 @@ class GeneratorConfig:
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
+
+
+VOID_ALBEDO = 0.01        # walls and floor of a void scene: grey albedo in [0, VOID_ALBEDO] (black cloth)
+MIN_CAMERA_R_M = 6.0      # a camera set by view_halfwidth_m stays at least this far from the centre
+
+# Named generator presets (``relight generate --preset NAME``): overrides of the defaults.
+# ``photo``: the photo-training mix of issue "from renders to photographs" (docs/photo.md): level
+# to steep cameras, 20-90 degree fields of view framed on the objects, lights down to 5 degrees
+# of elevation, and half the scenes on a black void, as studio photographs of objects are.
+PRESETS: dict[str, dict] = {
+    "photo": {"camera_tilt_deg": (2.0, 70.0), "fov_range_deg": (20.0, 90.0), "view_halfwidth_m": (2.5, 8.0),
+              "light_tilt_deg": (5.0, 90.0), "void_fraction": 0.5, "placement_radius_m": 2.5},
+}
 
 
 # Settings added after the first datasets, with the value every dataset made before the
@@ -245,5 +272,29 @@ def sample_scene(cfg: GeneratorConfig, dataset_seed: int, index: int) -> SceneSp
             part_reflectances=tuple(colours) if n_parts > 1 else ()))
     render = RenderSpec(res=cfg.res, spp=cfg.render_spp, max_depth=cfg.max_depth,
                         seed=int(rng.integers(0, 2 ** 31)), sampler=cfg.sampler)
+    if cfg.fov_range_deg is not None or cfg.view_halfwidth_m is not None or cfg.void_fraction > 0:
+        camera, room = _photo_draws(rng, cfg, camera, room)   # drawn last: other draws unchanged
     return SceneSpec(id=f"{index:06d}", camera=camera, light=light, room=room,
                      objects=tuple(objects), render=render, colour_prior=prior)
+
+
+def _photo_draws(rng: np.random.Generator, cfg: GeneratorConfig, camera: CameraSpec,
+                 room: RoomSpec) -> tuple[CameraSpec, RoomSpec]:
+    """The photo-like draws of one image (after all others): field of view, camera
+    distance from the view's half-width at the centre (``r = w / tan(fov / 2)``, at least
+    :data:`MIN_CAMERA_R_M`), and a void room (walls and floor near-black, one grey each)."""
+    fov = camera.fov_deg
+    if cfg.fov_range_deg is not None:
+        fov = float(np.round(rng.uniform(*cfg.fov_range_deg), 2))
+    r_m = camera.r_m
+    if cfg.view_halfwidth_m is not None:
+        halfwidth = rng.uniform(*cfg.view_halfwidth_m)
+        r_m = float(np.round(max(MIN_CAMERA_R_M, halfwidth / math.tan(math.radians(fov) / 2.0)), 3))
+    camera = dataclasses.replace(camera, fov_deg=fov, r_m=min(r_m, room.inradius_m / 2.0))
+    if cfg.void_fraction > 0 and rng.uniform() < cfg.void_fraction:
+        def dark():
+            grey = float(np.round(rng.uniform(0.0, VOID_ALBEDO), 4))
+            return {"kind": "checker", "seed": 0, "cells": 2, "angle": 0.0, "colors": [[grey] * 3, [grey] * 3]}
+        room = dataclasses.replace(room, wall_textures=tuple(dark() for _ in room.wall_textures),
+                                   floor_texture=dark())
+    return camera, room

@@ -1,0 +1,145 @@
+"""Real photographs and another renderer: the network where it was not trained.
+
+Scores one or more models (default: the shipped one) on
+* ``shared/data/psm_objects``: 60 real photographs of 5 objects under 12 known lights;
+* ``shared/data/psm_spheres``: the gray (diffuse) and chrome ball photographs of the same
+  12 lights (the network, beside the constant guess; the sphere procedure's own figures are
+  ``benchmarks/bench_probe.py``'s);
+* a Cycles dev set: default rooms rendered by Blender Cycles from relight scene files
+  (``benchmarks/cycles_twin.py``), beside the same scenes rendered by Mitsuba;
+all in the camera frame (``relight.net.photos``), with each model's own camera tilt where
+it has a camera head. Also printed: the constant "light at the camera" guess, the
+reference any estimator must beat on psm (its lights are all within 40 degrees of the view).
+
+Usage::
+
+    .venv/bin/python benchmarks/bench_photos.py [--model M ...] [--devset DIR] [--n 320]
+
+``--devset DIR`` (default ``~/relight-data/photo``) holds ``devset-mitsuba`` and
+``devset-cycles``; missing ones are made when Blender is set up (``scripts/setup_blender.sh``:
+320 scenes, seed 71, 128 px; about 15 minutes on 2 cores), else skipped with one line.
+Sets whose data are absent are skipped with one line.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, REPO)
+SHARED = os.path.join(REPO, "..", "shared", "data")
+DEVSET_SEED = 71
+
+
+def _row(label: str, s: dict, keys=("direction_deg",)) -> str:
+    parts = [f"{label:<44}", f"{s['n']:>4}"]
+    for k in keys:
+        parts.append(f"{s.get(k + '_median', float('nan')):7.2f} {s.get(k + '_mean', float('nan')):7.2f}")
+    cov = s.get("cone90_coverage", float("nan"))
+    parts.append("     -" if cov != cov else f"{100 * cov:5.1f}%")
+    parts.append(f"{100 * s.get('ood_share', 0.0):5.1f}%")
+    return "  ".join(parts)
+
+
+def _constant_guess(truth: np.ndarray) -> dict:
+    from relight import metrics
+    err = metrics.angle_deg(np.array([0.0, 0.0, 1.0]), truth)
+    return {"n": len(err), "direction_deg_median": float(np.median(err)), "direction_deg_mean": float(np.mean(err)),
+            "cone90_coverage": float("nan"), "ood_share": 0.0}
+
+
+def ensure_devset(root: str, n: int) -> tuple[str | None, str | None]:
+    """The Mitsuba dev set and its Cycles twin under ``root`` (made when missing and possible)."""
+    from relight.blender import blender_python
+    mitsuba, cycles = os.path.join(root, "devset-mitsuba"), os.path.join(root, "devset-cycles")
+    relight_cli = [sys.executable, "-m", "relight"]
+    if not os.path.exists(os.path.join(mitsuba, "manifest.jsonl")) or \
+            sum(1 for _ in open(os.path.join(mitsuba, "manifest.jsonl"))) < n:
+        print(f"making {mitsuba}: relight generate --count {n} --seed {DEVSET_SEED} (default rooms, 128 px)")
+        subprocess.run(relight_cli + ["generate", "--count", str(n), "--seed", str(DEVSET_SEED), "--out", mitsuba,
+                                      "--quiet"], check=True)
+    if blender_python() is None:
+        print("Cycles dev set: skipped (no Blender environment; run scripts/setup_blender.sh)")
+        return mitsuba, None
+    have = sum(1 for _ in open(os.path.join(cycles, "manifest.jsonl"))) if \
+        os.path.exists(os.path.join(cycles, "manifest.jsonl")) else 0
+    if have < n:
+        print(f"making {cycles}: benchmarks/cycles_twin.py {mitsuba} --limit {n} (resumable)")
+        subprocess.run([sys.executable, os.path.join(REPO, "benchmarks", "cycles_twin.py"), mitsuba,
+                        "--out", cycles, "--limit", str(n)], check=True)
+    return mitsuba, cycles
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--model", action="append", default=None,
+                    help="model file or run folder (repeatable; default: the shipped model)")
+    ap.add_argument("--devset", default=os.path.expanduser(os.path.join("~", "relight-data", "photo")),
+                    help="folder of the Mitsuba / Cycles dev sets (made when missing)")
+    ap.add_argument("--n", type=int, default=320, help="dev-set images (default 320)")
+    ap.add_argument("--no-devset", action="store_true", help="skip the Mitsuba / Cycles dev sets")
+    ap.add_argument("--camera-tilt", type=float, default=None,
+                    help="decode with this camera tilt instead of each model's own (or the paper's 45)")
+    ap.add_argument("--json", default=None, help="also write every summary to this JSON file")
+    args = ap.parse_args(argv)
+    if args.n < 1:
+        sys.stderr.write("bench_photos: error: --n must be a positive integer\n")
+        return 2
+    from relight.errors import RelightError
+    from relight.net import photos
+    from relight.net.predict import load_model
+    try:
+        models = [(m or "shipped", load_model(m)) for m in (args.model or [None])]
+        sets = []
+        objects = os.path.join(SHARED, "psm_objects")
+        spheres = os.path.join(SHARED, "psm_spheres")
+        if os.path.isdir(objects):
+            sets.append(("psm_objects (60 photos)", "photo", objects, None))
+        else:
+            print("psm_objects: skipped (shared/data/psm_objects not present)")
+        if os.path.isdir(spheres):
+            sets.append(("psm_spheres gray ball", "photo", spheres, ("gray",)))
+            sets.append(("psm_spheres chrome ball", "photo", spheres, ("chrome",)))
+        else:
+            print("psm_spheres: skipped (shared/data/psm_spheres not present)")
+        if not args.no_devset:
+            mitsuba, cycles = ensure_devset(args.devset, args.n)
+            sets.append((f"dev set, Mitsuba ({args.n} default rooms)", "data", mitsuba, None))
+            if cycles:
+                sets.append((f"dev set, Cycles (the same {args.n} scenes)", "data", cycles, None))
+        results = {}
+        head = f"{'set / model':<44}  {'n':>4}  {'direction (camera frame) med / mean':>15}"
+        for label, kind, folder, names in sets:
+            print(f"\n{label}")
+            if kind == "photo":
+                _, truth = photos.read_photo_set(folder, names)
+                print(_row("  constant guess: light at the camera", _constant_guess(truth)))
+            else:
+                head_keys = ("direction_deg", "world_direction_deg", "colour_deg")
+                print(f"  {'':<42}  {'n':>4}  cam-frame dir   world dir (true tilt)   colour   cone90  ood")
+            for name, model in models:
+                if kind == "photo":
+                    s = photos.summary(photos.score_photo_set(model, folder, names, args.camera_tilt))
+                    print(_row(f"  {os.path.basename(str(name))}", s))
+                else:
+                    s = photos.summary(photos.score_dataset(model, folder, limit=args.n))
+                    print(_row(f"  {os.path.basename(str(name))}", s, head_keys))
+                results[f"{label} | {name}"] = s
+        print(f"\ncolumns: median and mean degrees; cone90 = share of 90% cones holding the truth; "
+              f"ood = share flagged out-of-distribution")
+        if args.json:
+            from relight.fileio import write_json
+            write_json(args.json, results)
+    except RelightError as exc:
+        sys.stderr.write(f"bench_photos: error: {str(exc).splitlines()[0]}\n")
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

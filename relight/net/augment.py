@@ -1,0 +1,116 @@
+"""Camera-pipeline augmentation: a linear render turned into the 8-bit image a camera
+might have written, at training time.
+
+A render is scene-referred linear RGB; a photograph has gone through a camera: an
+exposure, a tone curve, sensor noise, optics (blur, vignetting) and JPEG compression.
+Applying these to the stored linear EXR when an image is read (instead of baking one
+choice into the dataset's PNG) lets one render serve many pipelines, and keeps the label
+true: none of them moves the light or changes its colour (every curve acts on the three
+channels alike, and the white balance is left alone, since the light's colour is the label).
+
+Each effect, drawn independently per image from ``numpy.random.Generator``:
+
+* exposure: a gain of ``2 ** ev``, ``ev`` uniform in :attr:`PipelineAugment.exposure_ev`;
+* sensor noise, Poisson-Gaussian (Foi et al. 2008): variance ``a * x + b`` per pixel, with
+  ``a`` log-uniform in ``photon_a`` and ``b = read_sigma ** 2``;
+* vignetting: ``1 - v * (r / r_corner) ** 2``, ``v`` uniform in ``vignette``;
+* blur: a Gaussian of ``sigma`` pixels (at network size) uniform in ``blur_px``;
+* tone curve, one of: the sRGB transfer (:func:`relight.colour.srgb_encode`); a pure gamma
+  ``x ** (1 / g)``, ``g`` in ``gamma``; a filmic curve (Hable's "Uncharted 2" operator,
+  white point 11.2, exposure bias 2) followed by the sRGB transfer; then 8-bit quantisation;
+* JPEG at a quality uniform in ``jpeg_quality`` (OpenCV's encoder), with probability
+  ``jpeg_p``.
+
+``PipelineAugment.none()`` is the identity pipeline: the sRGB transfer at exposure 1 and
+8-bit quantisation, exactly how the dataset PNGs are written (:func:`relight.imageio.to_srgb8`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from relight import colour
+
+TONE_CURVES = ("srgb", "gamma", "filmic")
+HABLE_WHITE = 11.2   # Hable's linear white point
+HABLE_EXPOSURE_BIAS = 2.0   # the gain before the curve in Hable's sample code
+
+
+def hable(x: np.ndarray) -> np.ndarray:
+    """Hable's filmic curve (J. Hable, "Uncharted 2: HDR Lighting", GDC 2010), normalised so
+    that :data:`HABLE_WHITE` maps to 1: ``f(x) / f(W)`` with
+    ``f(x) = ((x (A x + C B) + D E) / (x (A x + B) + D F)) - E / F``,
+    A = 0.15, B = 0.50, C = 0.10, D = 0.20, E = 0.02, F = 0.30."""
+    a, b, c, d, e, f = 0.15, 0.50, 0.10, 0.20, 0.02, 0.30
+
+    def curve(v):
+        return (v * (a * v + c * b) + d * e) / (v * (a * v + b) + d * f) - e / f
+    return curve(np.maximum(x, 0.0)) / curve(HABLE_WHITE)
+
+
+@dataclass(frozen=True)
+class PipelineAugment:
+    """Ranges of the camera-pipeline effects (see the module docstring)."""
+    exposure_ev: tuple[float, float] = (-2.0, 2.0)
+    photon_a: tuple[float, float] = (1e-4, 1e-2)
+    read_sigma: tuple[float, float] = (0.0, 0.01)
+    vignette: tuple[float, float] = (0.0, 0.4)
+    blur_px: tuple[float, float] = (0.0, 1.0)
+    tone_curves: tuple[str, ...] = TONE_CURVES
+    gamma: tuple[float, float] = (1.8, 2.6)
+    jpeg_quality: tuple[int, int] = (40, 100)
+    jpeg_p: float = 0.5
+    identity: bool = False
+
+    def __post_init__(self):
+        unknown = set(self.tone_curves) - set(TONE_CURVES)
+        if unknown or not self.tone_curves:
+            raise ValueError(f"tone_curves: expected some of {', '.join(TONE_CURVES)}, got {self.tone_curves}")
+        if not 0.0 <= self.jpeg_p <= 1.0:
+            raise ValueError(f"jpeg_p must be in [0, 1], got {self.jpeg_p}")
+        if not 1 <= self.jpeg_quality[0] <= self.jpeg_quality[1] <= 100:
+            raise ValueError(f"jpeg_quality: expected 1 <= lo <= hi <= 100, got {self.jpeg_quality}")
+
+    @classmethod
+    def none(cls) -> "PipelineAugment":
+        """The identity pipeline (how the dataset PNGs are written)."""
+        return cls(identity=True)
+
+    def apply(self, linear: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """``(H, W, 3)`` linear RGB -> ``(H, W, 3)`` uint8 as a camera pipeline drawn from ``rng``."""
+        x = np.asarray(linear, dtype=np.float64)
+        if self.identity:
+            return np.round(colour.srgb_encode(np.clip(x, 0.0, 1.0)) * 255.0).astype(np.uint8)
+        x = x * 2.0 ** rng.uniform(*self.exposure_ev)
+        a = float(np.exp(rng.uniform(np.log(self.photon_a[0]), np.log(self.photon_a[1]))))
+        b = float(rng.uniform(*self.read_sigma)) ** 2
+        x = np.maximum(x, 0.0)
+        x = x + np.sqrt(a * x + b) * rng.standard_normal(x.shape)
+        h, w = x.shape[:2]
+        yy, xx = np.mgrid[0:h, 0:w]
+        r2 = ((yy + 0.5 - h / 2) ** 2 + (xx + 0.5 - w / 2) ** 2) / ((h / 2) ** 2 + (w / 2) ** 2)
+        x = x * (1.0 - rng.uniform(*self.vignette) * r2)[..., None]
+        sigma = float(rng.uniform(*self.blur_px))
+        if sigma > 0.05:
+            from scipy.ndimage import gaussian_filter
+            x = gaussian_filter(x, sigma=(sigma, sigma, 0), mode="nearest")
+        curve = self.tone_curves[int(rng.integers(0, len(self.tone_curves)))]
+        x = np.clip(x, 0.0, None)
+        if curve == "srgb":
+            y = colour.srgb_encode(np.clip(x, 0.0, 1.0))
+        elif curve == "gamma":
+            y = np.clip(x, 0.0, 1.0) ** (1.0 / rng.uniform(*self.gamma))
+        else:
+            y = colour.srgb_encode(np.clip(hable(x * HABLE_EXPOSURE_BIAS), 0.0, 1.0))
+        out = np.round(np.clip(y, 0.0, 1.0) * 255.0).astype(np.uint8)
+        if rng.uniform() < self.jpeg_p:
+            import cv2
+            q = int(rng.integers(self.jpeg_quality[0], self.jpeg_quality[1] + 1))
+            ok, buf = cv2.imencode(".jpg", out[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, q])
+            if ok:
+                out = cv2.imdecode(buf, cv2.IMREAD_COLOR)[..., ::-1].copy()
+        return out
+
+
+AUGMENTS = {"none": PipelineAugment.none, "photo": PipelineAugment}   # TrainConfig.augment -> pipeline

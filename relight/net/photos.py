@@ -1,0 +1,126 @@
+"""Scoring a model where it matters: photographs with known light, and renders it did not make.
+
+Two kinds of test set, both scored in the camera frame of ``docs/conventions.md`` (x right,
+y up, z toward the camera), the only frame a photograph's light is known in:
+
+* a *photo set*: a folder of images with a ``lights.txt`` (the count, then one unit vector
+  per light, camera frame, object -> light) and images ``NAME.N.png`` lit by light ``N``
+  (``shared/data/psm_objects`` and ``psm_spheres``: :func:`read_photo_set`);
+* a *dataset* folder (``relight generate`` output, or its Cycles twin made by
+  ``benchmarks/cycles_twin.py``): the true light and camera of every record are known, so
+  the direction error is also given in the world frame with the true camera tilt (Table 1's
+  figure) beside the camera-frame one with the model's own camera tilt.
+
+Each scored image gives the direction error (degrees), whether its 90% cone covers the
+truth (``cone90_deg`` >= error; an out-of-distribution image's cone is 180 degrees) and its
+``ood`` flag; :func:`summary` turns them into the table rows of ``bench_photos.py``.
+"""
+from __future__ import annotations
+
+import os
+import re
+
+import numpy as np
+
+from relight import frames, metrics
+
+__all__ = ["read_photo_set", "score_photo_set", "score_dataset", "summary"]
+
+PHOTO_NAME = re.compile(r"^(?P<name>[A-Za-z0-9_-]+)\.(?P<light>\d+)\.(png|jpg|jpeg)$", re.IGNORECASE)
+
+
+def read_photo_set(folder: str, names: tuple[str, ...] | None = None) -> tuple[list[str], np.ndarray]:
+    """``(image files, true to-light vectors (N, 3), camera frame)`` of a photo set: every
+    ``NAME.N.png`` of ``folder`` (only ``names`` when given) with light ``N`` of its
+    ``lights.txt``. Raises :class:`relight.errors.DatasetError` when ``lights.txt`` is
+    missing or malformed."""
+    from relight.errors import DatasetError
+    path = os.path.join(folder, "lights.txt")
+    try:
+        with open(path) as f:
+            values = [float(v) for v in f.read().split()]
+        count = int(values[0])
+        lights = np.asarray(values[1:], np.float64).reshape(count, 3)
+    except (OSError, ValueError, IndexError) as exc:
+        raise DatasetError(f"{path}: expected the count, then one x y z line per light ({exc})") from None
+    files, truth = [], []
+    for fname in sorted(os.listdir(folder)):
+        m = PHOTO_NAME.match(fname)
+        if not m or (names is not None and m["name"] not in names):
+            continue
+        k = int(m["light"])
+        if k >= count:
+            raise DatasetError(f"{os.path.join(folder, fname)}: light {k} is not in {path} ({count} lights)")
+        files.append(os.path.join(folder, fname))
+        truth.append(lights[k])
+    return files, np.asarray(truth, np.float64).reshape(-1, 3)
+
+
+def _cone_covers(preds: list[dict], err: np.ndarray) -> np.ndarray:
+    cones = np.array([p.get("cone90_deg", np.nan) for p in preds], dtype=np.float64)
+    return cones >= err
+
+
+def score_photo_set(model, folder: str, names: tuple[str, ...] | None = None,
+                    camera_tilt_deg: float | None = None) -> dict:
+    """Predict every image of a photo set (:func:`read_photo_set`) and score it against the
+    true light, camera frame. ``camera_tilt_deg``: None = the model's own (camera head; else
+    the paper's 45). Returns per-image arrays ``id``, ``direction_deg``, ``covered``, ``ood``,
+    ``camera_tilt_deg``."""
+    from relight.net.predict import predict_files
+    files, truth = read_photo_set(folder, names)
+    preds = predict_files(model, files, camera_tilt_deg)
+    pred = np.array([p["to_light_camera"] for p in preds], dtype=np.float64).reshape(-1, 3)
+    err = metrics.angle_deg(pred, truth)
+    return {"id": [p["id"] for p in preds], "direction_deg": err, "covered": _cone_covers(preds, err),
+            "ood": np.array([bool(p.get("ood", False)) for p in preds]),
+            "camera_tilt_deg": np.array([p["camera_tilt_deg"] for p in preds])}
+
+
+def score_dataset(model, data_dir: str, split: str = "all", limit: int | None = None) -> dict:
+    """Score a model on a dataset folder: per image ``direction_deg`` (camera frame, the
+    model's own camera tilt where it has a camera head, else the true one),
+    ``world_direction_deg`` (Table 1's direction error: decoded with the true camera tilt),
+    ``colour_deg``, ``covered``, ``ood``, ``camera_tilt_error_deg``."""
+    import torch
+
+    from relight.net.data import LightDataset
+    from relight.net.predict import _predict_inputs
+    ds = LightDataset(data_dir, split, _net_res(model), cache=False)
+    if limit is not None:
+        ds.keep_first([min(limit, n) for n in ds.part_sizes()])
+    truth = ds.truth()
+    inputs = [ds.image_tensor(i) for i in range(len(ds))]
+    own = bool(getattr(model, "has_camera", False))
+    preds = _predict_inputs(model, inputs, None if own else truth["camera_tilt_deg"])
+    true_cam = np.stack([frames.world_to_camera(frames.direction(p, t), c) for p, t, c in
+                         zip(truth["pan_rel_deg"], truth["tilt_deg"], truth["camera_tilt_deg"])]).reshape(-1, 3)
+    pred_cam = np.array([p["to_light_camera"] for p in preds], dtype=np.float64).reshape(-1, 3)
+    err = metrics.angle_deg(pred_cam, true_cam)
+    with torch.no_grad():
+        y = np.array([p["y"] for p in preds], dtype=np.float64).reshape(-1, 7)
+    pan_w, tilt_w = frames.decode_y(y, truth["camera_tilt_deg"])[:2]
+    world = metrics.direction_error_deg(pan_w, tilt_w, truth["pan_rel_deg"], truth["tilt_deg"])
+    rgb = np.array([p["rgb"] for p in preds], dtype=np.float64).reshape(-1, 3)
+    return {"id": [r["id"] for r in ds.records], "direction_deg": err, "world_direction_deg": np.asarray(world),
+            "colour_deg": np.asarray(metrics.colour_error_deg(rgb, truth["rgb"])),
+            "covered": _cone_covers(preds, err), "ood": np.array([bool(p.get("ood", False)) for p in preds]),
+            "camera_tilt_error_deg": np.abs(np.array([p["camera_tilt_deg"] for p in preds]) - truth["camera_tilt_deg"])}
+
+
+def _net_res(model) -> int:
+    return int(model.config.res)
+
+
+def summary(scores: dict) -> dict:
+    """Median and mean of each error, cone coverage (share of images whose 90% cone holds the
+    truth, NaN for a model without cones) and the share flagged out-of-distribution."""
+    out = {"n": int(len(scores["direction_deg"]))}
+    for key in ("direction_deg", "world_direction_deg", "colour_deg", "camera_tilt_error_deg"):
+        if key in scores and len(scores[key]):
+            out[f"{key}_median"] = float(np.median(scores[key]))
+            out[f"{key}_mean"] = float(np.mean(scores[key]))
+    covered = np.asarray(scores["covered"], dtype=bool)
+    out["cone90_coverage"] = float(covered.mean()) if covered.size else float("nan")
+    out["ood_share"] = float(np.mean(scores["ood"])) if len(scores["ood"]) else 0.0
+    return out

@@ -1,0 +1,204 @@
+"""From renders to photographs: the photo preset's draws, the camera-pipeline augmentation,
+the camera-tilt head, answers in the camera frame, the out-of-distribution flag and the
+photo-set reader."""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from relight import frames
+from relight.errors import DatasetError
+from relight.imageio import to_srgb8
+from relight.net.augment import HABLE_WHITE, PipelineAugment, hable
+from relight.net.model import LightNet, NetConfig, camera_tilt_deg
+from relight.scene.sampling import MIN_CAMERA_R_M, PRESETS, VOID_ALBEDO, GeneratorConfig, sample_scene
+
+SEED = 11
+N_SCENES = 200
+
+
+# ----------------------------------------------------------------------------- generator
+def test_photo_preset_draws_obey_their_ranges():
+    cfg = GeneratorConfig(**PRESETS["photo"])
+    lo_fov, hi_fov = cfg.fov_range_deg
+    lo_w, hi_w = cfg.view_halfwidth_m
+    voids = 0
+    for i in range(N_SCENES):
+        spec = sample_scene(cfg, SEED, i)
+        cam = spec.camera
+        assert lo_fov <= cam.fov_deg <= hi_fov
+        assert cfg.camera_tilt_deg[0] <= cam.tilt_deg <= cfg.camera_tilt_deg[1]
+        assert cfg.light_tilt_deg[0] <= spec.light.tilt_deg <= cfg.light_tilt_deg[1]
+        # the camera distance frames a half-width in the drawn range (or stops at MIN_CAMERA_R_M)
+        halfwidth = cam.r_m * math.tan(math.radians(cam.fov_deg) / 2)
+        assert cam.r_m >= MIN_CAMERA_R_M - 1e-9
+        assert halfwidth <= hi_w + 1e-2 or cam.r_m == pytest.approx(MIN_CAMERA_R_M)
+        assert halfwidth >= lo_w - 1e-2
+        floor = np.asarray(spec.room.floor_texture["colors"], dtype=float)
+        if spec.room.floor_texture["kind"] == "checker" and np.all(floor <= VOID_ALBEDO):
+            voids += 1
+            for wall in spec.room.wall_textures:
+                assert np.all(np.asarray(wall["colors"], dtype=float) <= VOID_ALBEDO)
+    # void share 0.5: 200 draws lie within 4 standard deviations (sd = sqrt(200 / 4) = 7.1)
+    assert abs(voids - N_SCENES * cfg.void_fraction) <= 4 * math.sqrt(N_SCENES / 4)
+
+
+def test_photo_draws_come_last_so_other_draws_are_unchanged():
+    """A void scene has the same light, camera tilt and objects as the default scene of the
+    same seed and index: the photo-like draws are taken after every other draw."""
+    plain, void = GeneratorConfig(), GeneratorConfig(void_fraction=1.0)
+    for i in range(5):
+        a, b = sample_scene(plain, SEED, i), sample_scene(void, SEED, i)
+        assert a.light == b.light and a.objects == b.objects and a.camera == b.camera
+        assert a.render == b.render
+        assert b.room.floor_texture != a.room.floor_texture
+
+
+def test_photo_settings_are_validated():
+    from relight.errors import ConfigError
+    for bad in ({"void_fraction": 1.5}, {"fov_range_deg": (90.0, 20.0)}, {"view_halfwidth_m": (0.0, 3.0)}):
+        with pytest.raises(ConfigError):
+            GeneratorConfig(**bad)
+
+
+# ----------------------------------------------------------------------------- augmentation
+def _linear(seed=0, shape=(24, 24, 3)):
+    return np.random.default_rng(seed).uniform(0.0, 1.0, shape)
+
+
+def test_identity_pipeline_is_how_the_pngs_are_written():
+    x = _linear()
+    assert np.array_equal(PipelineAugment.none().apply(x, np.random.default_rng(0)), to_srgb8(x))
+
+
+def test_exposure_alone_is_a_gain_before_the_srgb_curve():
+    """With every other effect switched off, +1 EV is to_srgb8 of twice the image (to one
+    code value: the noise term left on is 1e-6 of a code value)."""
+    only_exposure = PipelineAugment(exposure_ev=(1.0, 1.0), photon_a=(1e-18, 1e-18), read_sigma=(0.0, 0.0),
+                                    vignette=(0.0, 0.0), blur_px=(0.0, 0.0), tone_curves=("srgb",), jpeg_p=0.0)
+    x = _linear(1)
+    out = only_exposure.apply(x, np.random.default_rng(3)).astype(int)
+    assert np.abs(out - to_srgb8(2.0 * x).astype(int)).max() <= 1
+
+
+def test_pipeline_keeps_grey_grey():
+    """Every effect but JPEG acts on the three channels alike, so a grey image stays grey:
+    the light's colour (the label) is never changed by the pipeline."""
+    grey = np.repeat(_linear(2, (24, 24, 1)), 3, axis=2)
+    no_jpeg = PipelineAugment(jpeg_p=0.0, photon_a=(1e-18, 1e-18), read_sigma=(0.0, 0.0))
+    for seed in range(5):
+        out = no_jpeg.apply(grey, np.random.default_rng(seed))
+        assert np.array_equal(out[..., 0], out[..., 1]) and np.array_equal(out[..., 1], out[..., 2])
+
+
+def test_hable_curve_is_normalised_and_monotone():
+    assert hable(np.array(0.0)) == pytest.approx(0.0, abs=1e-12)
+    assert hable(np.array(HABLE_WHITE)) == pytest.approx(1.0, abs=1e-12)
+    v = hable(np.linspace(0.0, HABLE_WHITE, 200))
+    assert np.all(np.diff(v) > 0)
+
+
+def test_pipeline_is_reproducible_from_its_seed():
+    x, aug = _linear(4), PipelineAugment()
+    a = aug.apply(x, np.random.default_rng([7, 1, 3, 1]))
+    b = aug.apply(x, np.random.default_rng([7, 1, 3, 1]))
+    assert np.array_equal(a, b)
+
+
+# ----------------------------------------------------------------------------- camera head
+def _net(**kw):
+    torch.manual_seed(0)
+    return LightNet(NetConfig(res=32, width=8, **kw)).eval()
+
+
+def test_camera_tilt_from_sin_cos():
+    t = np.radians([0.0, 30.0, 70.0, -10.0])
+    out = camera_tilt_deg(torch.tensor(np.stack([np.sin(t), np.cos(t)], 1) * 3.0))   # scale-free
+    assert np.allclose(out.numpy(), [0.0, 30.0, 70.0, -10.0], atol=1e-9)
+
+
+def test_adding_a_camera_head_keeps_every_other_output():
+    from relight.net.train import camera_loss, with_camera_head
+    net = _net()
+    grown = with_camera_head(net).eval()
+    x = torch.rand(3, 3, 32, 32)
+    with torch.no_grad():
+        y0 = net(x)
+        y1, _, camera = grown.forward_full(x)
+    assert torch.equal(y0, y1) and camera.shape == (3, 2)
+    tilts = torch.tensor([10.0, 40.0, 65.0])
+    exact = torch.stack([torch.sin(torch.deg2rad(tilts)), torch.cos(torch.deg2rad(tilts))], 1)
+    assert float(camera_loss(exact, tilts)) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_predictions_answer_in_the_camera_frame():
+    """to_light_camera is the decoded light seen from the camera: turned back into the world
+    with the same camera tilt it gives the decoded pan and tilt; a model with a camera head
+    decodes with its own tilt unless one is given."""
+    from relight.net.predict import _predict_inputs
+    net = _net(camera_head=True)
+    x = [torch.rand(3, 32, 32) for _ in range(4)]
+    own = _predict_inputs(net, x, None)
+    given = _predict_inputs(net, x, [30.0] * 4)
+    for p in own:
+        assert p["camera_tilt_source"] == "predicted"
+        assert np.linalg.norm(p["to_light_camera"]) == pytest.approx(1.0, abs=1e-12)
+        back = frames.camera_to_world_vector(p["to_light_camera"], p["camera_tilt_deg"])
+        assert np.allclose(back, frames.direction(p["pan_deg"], p["tilt_deg"]), atol=1e-9)
+    assert all(p["camera_tilt_deg"] == 30.0 and p["camera_tilt_source"] == "given" for p in given)
+
+
+def test_light_on_the_cameras_right_is_plus_x_in_the_camera_frame():
+    """pan_rel 90 is the camera's right (conventions), so a light there, level with a level
+    camera, is +x in the camera frame."""
+    v = frames.world_to_camera(frames.direction(90.0, 0.0), 0.0)
+    assert np.allclose(v, [1.0, 0.0, 0.0], atol=1e-12)
+
+
+# ----------------------------------------------------------------------------- out of distribution
+def test_ood_flags_images_unlike_the_fitting_set(tmp_path):
+    from relight.net.io import load_model_file, save_model
+    from relight.net.ood import OOD_CONE_DEG, fit_ood, ood_fields
+    g = torch.Generator().manual_seed(0)
+    held_out = 0.45 + 0.1 * torch.rand(160, 3, 32, 32, generator=g)      # dim grey noise
+    fitted, summary = fit_ood(_net(kappa_head=True), held_out, dims=8)
+    assert summary["ood_dims"] == 8
+    inside = 0.45 + 0.1 * torch.rand(100, 3, 32, 32, generator=g)        # more of the same
+    stripes = torch.zeros(20, 3, 32, 32)
+    stripes[:, 0, :, ::2] = 1.0                                          # saturated red stripes
+    flags_in = [f["ood"] for f in ood_fields(fitted, inside)]
+    flags_out = ood_fields(fitted, stripes)
+    assert np.mean(flags_in) <= 0.1          # threshold at the 99% quantile of the fitting set
+    assert all(f["ood"] and f["cone90_deg"] == OOD_CONE_DEG for f in flags_out)
+    path = tmp_path / "m.safetensors"
+    save_model(path, fitted, {})
+    again = load_model_file(path)
+    assert [f["ood"] for f in ood_fields(again, stripes)] == [True] * 20
+
+
+def test_ood_needs_enough_images():
+    from relight.net.ood import fit_ood
+    with pytest.raises(DatasetError):
+        fit_ood(_net(), torch.rand(5, 3, 32, 32), dims=8)
+
+
+# ----------------------------------------------------------------------------- photo sets
+def test_photo_set_reader(tmp_path):
+    from PIL import Image
+
+    from relight.net.photos import read_photo_set
+    (tmp_path / "lights.txt").write_text("2\n0 0 1\n0.6 0.8 0\n")
+    for name in ("ball.0.png", "ball.1.png", "cup.1.png", "ball.mask.png"):
+        Image.new("RGB", (8, 8)).save(tmp_path / name)
+    files, truth = read_photo_set(str(tmp_path))
+    assert [f.split("/")[-1] for f in files] == ["ball.0.png", "ball.1.png", "cup.1.png"]
+    assert np.allclose(truth, [[0, 0, 1], [0.6, 0.8, 0], [0.6, 0.8, 0]])
+    files, _ = read_photo_set(str(tmp_path), ("cup",))
+    assert len(files) == 1
+    (tmp_path / "lights.txt").write_text("3\n0 0 1\n")
+    with pytest.raises(DatasetError):
+        read_photo_set(str(tmp_path))
