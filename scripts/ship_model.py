@@ -47,6 +47,7 @@ PAPER_PAN = {"front": (6.87, 5.10, 9.10, 0.98), "right": (6.24, 5.12, 8.80, 0.96
 STAGE_WORDS = {2: "Two", 3: "Three", 4: "Four", 5: "Five"}
 GENERATE_FLAGS = ("res", "spp", "target_rmse", "sampler", "colour_prior", "object_parts", "backgrounds",
                   "max_depth", "mesh_dir")
+PRESET_FLAGS = ("colour_prior", "object_parts", "light_colour")   # set by --preset sid2-paper
 
 
 def _copy(src: str, dst: str) -> None:
@@ -78,8 +79,9 @@ def settings_text(card: dict) -> str:
     cfg = dataset_settings(card)
     lo, hi = cfg["object_parts"]
     parts = "one colour per object" if hi == 1 else f"objects of {lo if lo == hi else f'{lo}-{hi}'} coloured parts"
+    light = "" if cfg.get("light_colour", "planckian") == "planckian" else f", {cfg['light_colour']} light colours"
     return (f"{cfg['res']} px, {noise_text(card)}, colour prior {cfg['colour_prior']}, {parts}, "
-            f"{cfg['backgrounds']} backgrounds")
+            f"{cfg['backgrounds']} backgrounds{light}")
 
 
 def generate_command(card: dict, path: str, count: int) -> tuple[str, str]:
@@ -89,25 +91,31 @@ def generate_command(card: dict, path: str, count: int) -> tuple[str, str]:
     without an option go into ``--config CONFIG.json``, which the note spells out)."""
     import dataclasses
 
-    from relight.scene.sampling import GeneratorConfig
+    from relight.scene.sampling import GeneratorConfig, is_sid2_paper
     default = json.loads(json.dumps(dataclasses.asdict(GeneratorConfig())))
     cfg = dataset_settings(card)
+    preset = is_sid2_paper(cfg)
     opts = [f"--count {count}", f"--out {path}", f"--seed {card['seed']}"]
+    if preset:   # the preset's own settings go without saying
+        opts.insert(0, "--preset sid2-paper")
     if cfg.get("res") != default["res"]:
         opts.append(f"--res {cfg['res']}")
     if cfg.get("spp") is not None:
         opts.append(f"--spp {cfg['spp']}")
     else:
         opts.append(f"--target-rmse {cfg['target_rmse']:g}")
-    opts += [f"--sampler {cfg['sampler']}", f"--colour-prior {cfg['colour_prior']}"]
-    lo, hi = cfg["object_parts"]
-    opts.append(f"--object-parts {lo}" if lo == hi else f"--object-parts {lo}-{hi}")
+    opts.append(f"--sampler {cfg['sampler']}")
+    if not preset:
+        opts.append(f"--colour-prior {cfg['colour_prior']}")
+        lo, hi = cfg["object_parts"]
+        opts.append(f"--object-parts {lo}" if lo == hi else f"--object-parts {lo}-{hi}")
     opts.append(f"--backgrounds {cfg['backgrounds']}")
     if cfg.get("max_depth", default["max_depth"]) != default["max_depth"]:
         opts.append(f"--max-depth {cfg['max_depth']}")
     if cfg.get("mesh_dir"):
         opts.append(f"--mesh-dir {cfg['mesh_dir']}")
-    other = {k: v for k, v in cfg.items() if k in default and k not in GENERATE_FLAGS and v != default[k]}
+    other = {k: v for k, v in cfg.items() if k in default and k not in GENERATE_FLAGS and v != default[k]
+             and not (preset and k in PRESET_FLAGS)}
     note = ""
     if other:
         opts.append("--config CONFIG.json")

@@ -55,6 +55,25 @@ def test_generate_command_and_settings_name_the_backgrounds(ship_model):
     assert ship_model.settings_text(card).endswith(", mosaic backgrounds")
 
 
+def test_generate_command_of_the_sid2_paper_preset(ship_model):
+    """A card of `--preset sid2-paper` gives the command with the preset (its settings not
+    repeated) and the backgrounds it used; a card that only shares some of them does not."""
+    import dataclasses
+    from relight.scene.sampling import sid2_paper_config
+    for backgrounds in ("library", "unseen"):
+        config = json.loads(json.dumps(dataclasses.asdict(sid2_paper_config(backgrounds=backgrounds, res=64))))
+        cmd, note = ship_model.generate_command({"seed": 8, "spp": 16, "config": config}, "d", 200)
+        assert cmd.startswith("relight generate --preset sid2-paper --count 200 --out d --seed 8 --res 64 ")
+        assert cmd.endswith(f"--backgrounds {backgrounds}") and note == ""
+        assert "--colour-prior" not in cmd and "--object-parts" not in cmd
+        assert ship_model.settings_text({"seed": 8, "spp": 16, "config": config}).endswith(
+            f"{backgrounds} backgrounds, tanner-helland light colours")
+    config["object_parts"] = [1, 32]
+    cmd, note = ship_model.generate_command({"seed": 8, "spp": 16, "config": config}, "d", 200)
+    assert "--preset" not in cmd and "--colour-prior pastel --object-parts 1-32" in cmd
+    assert '"light_colour": "tanner-helland"' in note
+
+
 def test_generate_command_of_a_legacy_card(ship_model):
     """Cards written before the sampler and prior fields: independent sampler, hsv prior."""
     card = {"seed": 1, "config": {"res": 64, "spp": 32, "max_depth": 4}}
