@@ -232,8 +232,12 @@ def scene_floors(data_dir: str, n_scenes: int, n_candidates: int = 4000, seed: i
     floor: an ``hsv`` pattern texture's colours share a base hue, integrated out on
     :data:`BASE_HUES` values (``texture_draws`` colours each); mosaic cells and ``munsell``
     colours are independent draws. Objects: the object prior (the box in closed form for
-    ``hsv``, the chips for ``munsell``). Only the surfaces' colours count (no shading, no
-    interreflections, no noise): no estimator of those colours does better on average."""
+    ``hsv``, the chips for ``munsell``, a density of draws for ``pastel``). Only the surfaces'
+    colours count (no shading, no interreflections, no noise): no estimator of those colours
+    does better on average. A texture several walls share (one background) counts once.
+    ``--preset sid2-paper`` sets (read from the dataset card): the light prior is its 80
+    Tanner-Helland triplets (:func:`light_candidates`), and on ``library`` backgrounds the
+    observer knows the library (:func:`library_logpdf`)."""
     from scipy.special import logsumexp
 
     from relight.scene.albedo import (chromaticity, chromaticity_log_density, hsv_texture_albedos,
@@ -284,9 +288,12 @@ def scene_floors(data_dir: str, n_scenes: int, n_candidates: int = 4000, seed: i
                 total += shared_hue_logpdf(x, candidates, by_hue)
         if len(parts):
             c = parts * light
-            total += (box_direction_logpdf(c / np.linalg.norm(c, axis=1, keepdims=True), candidates, lo, hi)
-                      if prior == "hsv" else scaled_chromaticity_logpdf(chromaticity(c), candidates,
-                                                                        pastel if prior == "pastel" else munsell)).sum(0)
+            if prior == "hsv":
+                logp = box_direction_logpdf(c / np.linalg.norm(c, axis=1, keepdims=True), candidates, lo, hi)
+            else:
+                density = pastel if prior == "pastel" else munsell
+                logp = scaled_chromaticity_logpdf(chromaticity(c), candidates, density)
+            total += logp.sum(0)
         estimate = posterior_mean_light(total[None], candidates)
         out.append({"id": rec["id"], "textures": int(sum(len(t) for t in tex)), "parts": len(parts),
                     "floor_deg": float(colour_error_deg(estimate, light))})
