@@ -23,12 +23,18 @@ something known. Four measurements:
 4. **The floor of each scene of a dataset** (``--floors DATA``): the surfaces each image
    actually shows (an albedo render matched to the scene file's colours) and the ideal
    observer under the generator's own priors (:func:`scene_floors`); with ``--eval``
-   beside a model's colour error on the same images.
+   beside a model's colour error on the same images. Sets of ``--preset sid2-paper``: the
+   observer's light prior is the preset's 80 Tanner-Helland triplets, its object prior the
+   pastel one; on ``library`` backgrounds it knows the library (the backgrounds are shared
+   by train and test, so a network can learn them), on ``unseen`` ones only how
+   backgrounds are drawn.
 
     .venv/bin/python benchmarks/bench_colour_floor.py [--draws 2000]
         [--eval /root/relight-data/sid2-test-eval --data /root/relight-data/sid2-test]
     .venv/bin/python benchmarks/bench_colour_floor.py --floors /root/relight-data/sid2p-test
         --scenes 1000 [--eval EVAL]
+    .venv/bin/python benchmarks/bench_colour_floor.py --floors PAPER_SET --scenes 200
+        (PAPER_SET: relight generate --preset sid2-paper [--backgrounds unseen] ...)
 
 The floor at 2,000 scenes per count takes about 10 minutes on one core (the 300-surface
 posterior dominates); its means carry a standard error of 0.13 degree for one surface,
@@ -39,6 +45,7 @@ from __future__ import annotations
 import argparse
 import csv
 import functools
+import json
 import os
 import sys
 
@@ -175,6 +182,46 @@ def visible_surfaces(spec, albedos: np.ndarray) -> tuple[list[np.ndarray], np.nd
 
 
 BASE_HUES = 48   # the hsv prior's texture base hue, integrated over on a grid of this many values
+LIBRARY_SIGMA = 1e-3   # library backgrounds: chromaticity tolerance of a seen colour against a library one
+PASTEL_DRAWS = 200_000  # draws of the pastel object prior behind its chromaticity density
+
+
+def light_candidates(card_config: dict, n_candidates: int, rng: np.random.Generator) -> np.ndarray:
+    """``(M, 3)`` draws of a dataset's light prior for the ideal observer, each carrying the
+    same prior weight: ``n_candidates`` draws of relight's (CCT, Duv) prior, or for
+    Tanner-Helland lights (``--preset sid2-paper``) its 80 triplets, 2000-9900 K in 100 K
+    steps, each once (the prior is uniform over them)."""
+    from relight.colour import (CCT_STEP_K, TANNER_HELLAND_RANGE_K, kelvin_to_rgb_tanner_helland,
+                                sample_light_colour)
+    if card_config.get("light_colour", "planckian") == "tanner-helland":
+        lo, hi = TANNER_HELLAND_RANGE_K
+        rgb = kelvin_to_rgb_tanner_helland(np.arange(lo, hi + CCT_STEP_K / 2, CCT_STEP_K))
+        return rgb / np.linalg.norm(rgb, axis=1, keepdims=True)
+    return np.array([sample_light_colour(rng)[2] for _ in range(n_candidates)])
+
+
+def library_logpdf(seen: list[tuple[int, np.ndarray]], light: np.ndarray, candidates: np.ndarray,
+                   sigma: float = LIBRARY_SIGMA) -> np.ndarray:
+    """``log p(x | l)`` (M,) of the colours a scene shows of its library background, for each
+    candidate light ``l``: ``seen`` holds ``(role, albedos (n, 3))``, role 0 the walls'
+    texture and 1 the floor's. The observer knows the library: the background is one of its
+    entries (uniform), each seen colour one of that entry's colours for its role, its
+    chromaticity that of ``albedo * l`` within a Gaussian of ``sigma``; the entry is summed
+    out."""
+    from scipy.special import logsumexp
+
+    from relight.scene.albedo import chromaticity
+    from relight.scene.textures import background_library
+    library = background_library()
+    per_entry = np.zeros((len(library), len(candidates)))
+    for role, albedos in seen:
+        x = chromaticity(albedos * light)                                          # (n, 2)
+        for k, background in enumerate(library):
+            c = np.asarray(background[role]["colors"], dtype=np.float64)           # (C, 3)
+            pred = chromaticity(c[None, :, :] * candidates[:, None, :])            # (M, C, 2)
+            d2 = ((x[:, None, None, :] - pred[None]) ** 2).sum(-1)                 # (n, M, C)
+            per_entry[k] += (logsumexp(-d2 / (2 * sigma ** 2), axis=2) - np.log(len(c))).sum(0)
+    return logsumexp(per_entry, axis=0) - np.log(len(library))
 
 
 def scene_floors(data_dir: str, n_scenes: int, n_candidates: int = 4000, seed: int = 0,
@@ -185,23 +232,32 @@ def scene_floors(data_dir: str, n_scenes: int, n_candidates: int = 4000, seed: i
     floor: an ``hsv`` pattern texture's colours share a base hue, integrated out on
     :data:`BASE_HUES` values (``texture_draws`` colours each); mosaic cells and ``munsell``
     colours are independent draws. Objects: the object prior (the box in closed form for
-    ``hsv``, the chips for ``munsell``). Only the surfaces' colours count (no shading, no
-    interreflections, no noise): no estimator of those colours does better on average."""
+    ``hsv``, the chips for ``munsell``, a density of draws for ``pastel``). Only the surfaces'
+    colours count (no shading, no interreflections, no noise): no estimator of those colours
+    does better on average. A texture several walls share (one background) counts once.
+    ``--preset sid2-paper`` sets (read from the dataset card): the light prior is its 80
+    Tanner-Helland triplets (:func:`light_candidates`), and on ``library`` backgrounds the
+    observer knows the library (:func:`library_logpdf`)."""
     from scipy.special import logsumexp
 
-    from relight.colour import sample_light_colour
     from relight.scene.albedo import (chromaticity, chromaticity_log_density, hsv_texture_albedos,
                                       munsell_albedos, posterior_mean_light, scaled_chromaticity_logpdf,
                                       shared_hue_logpdf)
     from relight.scene.build import SceneBuilder
     from relight.scene.spec import load_scene
     from tqdm import tqdm
+    from relight.dataset import read_card
+    from relight.scene.albedo import pastel_albedos
+    from relight.scene.textures import LIBRARY
     rng = np.random.default_rng(seed)
-    candidates = np.array([sample_light_colour(rng)[2] for _ in range(n_candidates)])
+    card_config = read_card(data_dir).get("config", {})
+    candidates = light_candidates(card_config, n_candidates, rng)
+    library_mode = card_config.get("backgrounds") == LIBRARY
     by_hue = np.stack([chromaticity_log_density(hsv_texture_albedos(rng, texture_draws, (j + 0.5) / BASE_HUES))
                        for j in range(BASE_HUES)])                      # log p(chromaticity | base hue)
     hsv_marginal = logsumexp(by_hue, axis=0) - np.log(BASE_HUES)
     munsell = chromaticity_log_density(np.clip(munsell_albedos(), ALBEDO_MIN, ALBEDO_MAX))
+    pastel = chromaticity_log_density(pastel_albedos(rng, PASTEL_DRAWS))
     lo, hi = OBJECT_RANGE
     builder, out = SceneBuilder(), []
     for rec in tqdm(read_manifest(data_dir)[:n_scenes], desc="scenes", leave=False):
@@ -211,7 +267,16 @@ def scene_floors(data_dir: str, n_scenes: int, n_candidates: int = 4000, seed: i
         light = np.asarray(spec.light.rgb, dtype=np.float64)
         textures = [*spec.room.wall_textures, spec.room.floor_texture]
         total = np.zeros(len(candidates))
-        for texture, seen in zip(textures, tex):
+        unique: dict = {}   # one background's walls share one texture: its colours count once
+        for k, (texture, seen) in enumerate(zip(textures, tex)):
+            key = (k == len(textures) - 1, json.dumps(texture, sort_keys=True))
+            old_texture, old_seen = unique.get(key, (texture, np.zeros((0, 3))))
+            unique[key] = (texture, np.unique(np.concatenate([old_seen, seen]), axis=0) if len(seen) else old_seen)
+        if library_mode:    # the observer knows the library: walls (role 0) and floor (role 1)
+            seen_roles = [(int(is_floor), seen) for (is_floor, _), (_, seen) in unique.items() if len(seen)]
+            if seen_roles:
+                total += library_logpdf(seen_roles, light, candidates)
+        for texture, seen in ([] if library_mode else unique.values()):
             if not len(seen):
                 continue
             x = chromaticity(seen * light)
@@ -223,8 +288,12 @@ def scene_floors(data_dir: str, n_scenes: int, n_candidates: int = 4000, seed: i
                 total += shared_hue_logpdf(x, candidates, by_hue)
         if len(parts):
             c = parts * light
-            total += (box_direction_logpdf(c / np.linalg.norm(c, axis=1, keepdims=True), candidates, lo, hi)
-                      if prior == "hsv" else scaled_chromaticity_logpdf(chromaticity(c), candidates, munsell)).sum(0)
+            if prior == "hsv":
+                logp = box_direction_logpdf(c / np.linalg.norm(c, axis=1, keepdims=True), candidates, lo, hi)
+            else:
+                density = pastel if prior == "pastel" else munsell
+                logp = scaled_chromaticity_logpdf(chromaticity(c), candidates, density)
+            total += logp.sum(0)
         estimate = posterior_mean_light(total[None], candidates)
         out.append({"id": rec["id"], "textures": int(sum(len(t) for t in tex)), "parts": len(parts),
                     "floor_deg": float(colour_error_deg(estimate, light))})

@@ -53,14 +53,15 @@ def ensure_data(folder: str, n: int) -> None:
 
 
 def _errors(preds, recs):
-    from relight.metrics import light_errors
+    """The table's errors: pan over the lights below the zenith (``pan_all`` every light's)."""
+    from relight.metrics import light_errors, table_values
     pan = [p[0] for p in preds]
     tilt = [p[1] for p in preds]
     rgb = [p[2] for p in preds]
-    return light_errors(np.array(pan), np.array(tilt), np.array(rgb),
-                        np.array([r["pan_rel_deg"] for r in recs]),
-                        np.array([r["light"]["tilt_deg"] for r in recs]),
-                        np.array([r["light"]["rgb"] for r in recs]))
+    tilt_gt = np.array([r["light"]["tilt_deg"] for r in recs])
+    return table_values(light_errors(np.array(pan), np.array(tilt), np.array(rgb),
+                                     np.array([r["pan_rel_deg"] for r in recs]), tilt_gt,
+                                     np.array([r["light"]["rgb"] for r in recs])), tilt_gt)
 
 
 def _colour_errors(rgbs, recs):
@@ -72,7 +73,7 @@ def _row(name, errs, seconds, iters="", renders=""):
     cells = [name]
     for m in ("pan", "tilt", "direction", "colour"):
         e = errs.get(m)
-        cells.append("-" if e is None else f"{np.mean(e):.2f} / {np.median(e):.2f}")
+        cells.append("-" if e is None or not len(e) else f"{np.mean(e):.2f} / {np.median(e):.2f}")
     cells += [f"{seconds:.3f}", str(iters), str(renders)]
     return "| " + " | ".join(cells) + " |"
 
@@ -237,7 +238,9 @@ def main(argv=None) -> int:
     eg, sg, ig, rg = summary(results["grid"])
     en, sn, in_, rn = summary(results["net"])
     print(f"\n### Errors in degrees (mean / median), {len(recs)} images\n")
-    print("| method | pan | tilt | direction | colour | s / image | LM iterations | renders |")
+    zenith = sum(float(r["light"]["tilt_deg"]) >= 90.0 for r in recs)
+    print(f"| method | pan (tilt < 90; {zenith} zenith left out) | tilt | direction | colour | s / image | "
+          "LM iterations | renders |")
     print("|---|---|---|---|---|---|---|---|")
     net_errs = _errors(net_preds, recs)
     if net_label == "network single shot":

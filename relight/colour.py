@@ -16,6 +16,12 @@ Convention (``shared/conventions.md``):
 
 The CCT/Duv maths is colour-science's (``"Ohno 2013"``, CIE 1931 2 degree
 observer). ``colour`` is imported lazily (about 1 s), so the sRGB curves stay cheap.
+
+A second light-colour model, for ``relight generate --preset sid2-paper``: a colour
+temperature alone (no Duv) in 100 K steps, turned into an RGB triplet by Tanner
+Helland's kelvin-to-RGB approximation (:func:`kelvin_to_rgb_tanner_helland`), the
+triplet used as it is (unit norm) as the light's linear colour in the renderer and in
+the label, as the paper's research group makes its later datasets.
 """
 from __future__ import annotations
 
@@ -28,6 +34,7 @@ __all__ = [
     "CCT_RANGE_K", "DUV_MAX", "CCT_VALID_K", "DUV_VALID_MAX",
     "cct_duv_to_xy", "xy_to_rgb", "cct_duv_to_rgb", "rgb_to_cct_duv", "rgb_to_cct_duv_near_locus",
     "sample_light_colour", "srgb_encode", "srgb_decode",
+    "kelvin_to_rgb_tanner_helland", "LIGHT_COLOURS", "TANNER_HELLAND_RANGE_K", "CCT_STEP_K", "sample_cct_step_light",
 ]
 
 CCT_RANGE_K = (2500.0, 10000.0)  # sampling range of light CCTs, kelvin
@@ -197,6 +204,58 @@ def sample_light_colour(rng: np.random.Generator) -> tuple[float, float, np.ndar
         if np.all(rgb > 0.0):
             return cct_k, duv, rgb
     raise RuntimeError(f"no in-gamut light colour in {_MAX_DRAWS} draws")  # pragma: no cover
+
+
+LIGHT_COLOURS = ("planckian", "tanner-helland")   # generator setting light_colour: the two models
+TANNER_HELLAND_RANGE_K = (2000.0, 9900.0)   # --preset sid2-paper: the group's later sets' range ...
+CCT_STEP_K = 100.0                          # ... in 100 K steps (80 temperatures)
+TANNER_HELLAND_VALID_K = (1000.0, 40000.0)  # the range the approximation was fitted on
+
+
+def kelvin_to_rgb_tanner_helland(kelvin) -> np.ndarray:
+    """Tanner Helland's kelvin-to-RGB approximation: ``(..., 3)`` RGB in [0, 255].
+
+    Published as "How to Convert Temperature (K) to RGB: Algorithm and Sample Code"
+    (T. Helland, tannerhelland.com, 2012), a curve fit to Mitchell Charity's blackbody
+    colour table (``bbr_color.txt``, CIE 1964 10 degree CMFs, sRGB primaries); fitted
+    on 1000-40000 K. With ``t = kelvin / 100``:
+
+    * red: 255 for ``t <= 66``, else ``329.698727446 (t - 60)^-0.1332047592``;
+    * green: ``99.4708025861 ln t - 161.1195681661`` for ``t <= 66``, else
+      ``288.1221695283 (t - 60)^-0.0755148492``;
+    * blue: 255 for ``t >= 66``, 0 for ``t <= 19``, else
+      ``138.5177312231 ln(t - 10) - 305.0447927307``;
+
+    each clamped to [0, 255]. The published code divides by 100 in integers; for
+    multiples of 100 K (the only ones relight draws) the two agree. Kelvin outside
+    [1000, 40000] or non-finite: ValueError.
+
+    >>> kelvin_to_rgb_tanner_helland(6600.0).tolist()
+    [255.0, 255.0, 255.0]
+    """
+    k = np.asarray(kelvin, dtype=np.float64)
+    if not np.all(np.isfinite(k)) or np.any((k < TANNER_HELLAND_VALID_K[0]) | (k > TANNER_HELLAND_VALID_K[1])):
+        raise ValueError(f"expected kelvin in [{TANNER_HELLAND_VALID_K[0]:g}, {TANNER_HELLAND_VALID_K[1]:g}], "
+                         f"got {k.ravel()[:5]}")
+    t = k / 100.0
+    hot = np.maximum(t - 60.0, 1e-9)        # only read where t > 66
+    red = np.where(t <= 66.0, 255.0, 329.698727446 * hot ** -0.1332047592)
+    green = np.where(t <= 66.0, 99.4708025861 * np.log(t) - 161.1195681661, 288.1221695283 * hot ** -0.0755148492)
+    blue = np.where(t >= 66.0, 255.0, np.where(t <= 19.0, 0.0,
+                                               138.5177312231 * np.log(np.maximum(t - 10.0, 1e-9)) - 305.0447927307))
+    return np.clip(np.stack([red, green, blue], axis=-1), 0.0, 255.0)
+
+
+def sample_cct_step_light(rng: np.random.Generator, range_k=TANNER_HELLAND_RANGE_K,
+                          step_k: float = CCT_STEP_K) -> tuple[float, np.ndarray]:
+    """Draw a light colour of ``--preset sid2-paper``: ``(kelvin, rgb)``, the temperature
+    uniform over ``range_k`` (inclusive) in ``step_k`` steps (one integer draw: 2000,
+    2100, ..., 9900 K by default) and ``rgb`` its Tanner-Helland triplet
+    (:func:`kelvin_to_rgb_tanner_helland`) scaled to unit norm, shape ``(3,)``."""
+    n = int(round((range_k[1] - range_k[0]) / step_k))
+    kelvin = float(range_k[0] + step_k * int(rng.integers(0, n + 1)))
+    rgb = kelvin_to_rgb_tanner_helland(kelvin)
+    return kelvin, rgb / np.linalg.norm(rgb)
 
 
 def _check_finite(values, what: str) -> np.ndarray:

@@ -7,6 +7,12 @@ Convention (``shared/conventions.md``):
       ``frames.direction(pan, tilt) = (cos t cos p, cos t sin p, sin t)``.
     * colour error: angle between predicted and true RGB (the recovery angular error
       of colour constancy), scale invariant.
+    * Table pan (decided in the team's Table 1 issue): the pan error of a *set* is the
+      mean over the lights with true tilt < 90 (:data:`ZENITH_TILT_DEG`), where pan is
+      defined; the number of zenith lights left out is printed beside it, and the mean
+      over all lights stays available as its own column, ``pan_all`` ("Pan, all lights").
+      Per-image errors (:func:`light_errors`) are unchanged: a zenith light's pan error
+      is still computed, only the tables leave it out of "Pan".
     * Breakdowns: tilt levels L1 [30, 50), L2 [50, 70), L3 [70, 90] on the true tilt;
       pan levels on the true ``pan_rel`` (wrapped to [0, 360)), counted only for true
       tilt in [30, 70] (inclusive): front [315, 45), right [45, 135),
@@ -26,15 +32,20 @@ __all__ = [
     "light_errors", "summary_stats", "TILT_LEVELS", "PAN_LEVELS", "PAN_TABLE_TILT_DEG",
     "METRICS", "tilt_level", "pan_level", "error_tables", "format_tables", "pan_where_defined",
     "format_pan_where_defined", "pan_by_tilt", "format_pan_by_tilt",
-    "ZENITH_TILT_DEG", "TILT_STEP_DEG",
+    "ZENITH_TILT_DEG", "TILT_STEP_DEG", "TABLE_METRICS", "METRIC_LABELS", "pan_defined", "table_values",
 ]
 
 METRICS = ("pan", "tilt", "direction", "colour")  # keys of light_errors, table order
+TABLE_METRICS = METRICS + ("pan_all",)            # the tables' columns: pan where defined ... pan of all lights
+METRIC_LABELS = {"pan": "Pan (tilt < 90)", "tilt": "Tilt", "direction": "Direction", "colour": "Colour",
+                 "pan_all": "Pan, all lights"}
+ZENITH_KEY = "zenith_left_out"   # in a table's "pan" stats: the lights at the zenith left out of them
 TILT_LEVELS = {"L1": (30.0, 50.0), "L2": (50.0, 70.0), "L3": (70.0, 90.0)}
 PAN_LEVELS = {"front": (315.0, 45.0), "right": (45.0, 135.0),
               "back": (135.0, 225.0), "left": (225.0, 315.0)}
 PAN_TABLE_TILT_DEG = (30.0, 70.0)  # true tilt range (inclusive) kept for the pan table
 ZENITH_TILT_DEG = 90.0             # a light here has no pan (SID2 draws tilt 90 in 1 of 13 steps)
+#                                    tables score pan over true tilt < ZENITH_TILT_DEG only
 TILT_STEP_DEG = 5.0                # SID2's light tilt step: the rows of pan_by_tilt
 STATS = ("n", "mean", "median", "trimean", "best25", "worst25", "max")
 STAT_LABELS = {"mean": "Mean", "median": "Median", "trimean": "Trimean",
@@ -213,8 +224,46 @@ def pan_level(pan_rel_gt_deg, tilt_gt_deg) -> np.ndarray:
     return np.select(conds, labels, default="").astype("<U5")
 
 
-def _stats_by_metric(errors: dict[str, np.ndarray], mask) -> dict:
-    return {m: summary_stats(e[mask]) for m, e in errors.items()}
+def pan_defined(tilt_gt_deg) -> np.ndarray:
+    """True where a light's pan is defined: true tilt below the zenith (< 90 deg).
+
+    >>> pan_defined([30.0, 89.5, 90.0]).tolist()
+    [True, True, False]
+    """
+    return np.asarray(tilt_gt_deg, dtype=np.float64) < ZENITH_TILT_DEG
+
+
+def table_values(errors: dict, tilt_gt_deg) -> dict[str, np.ndarray]:
+    """The values each table column summarises, from per-image errors (degrees, (N,)):
+    ``"pan"`` only where pan is defined (:func:`pan_defined`), ``"pan_all"`` every
+    image's pan error, the other metrics as given. Order: :data:`TABLE_METRICS` first.
+
+    >>> v = table_values({"pan": [2.0, 4.0, 120.0], "tilt": [1.0, 1.0, 1.0]}, [40.0, 85.0, 90.0])
+    >>> v["pan"].tolist(), v["pan_all"].tolist(), v["tilt"].tolist()
+    ([2.0, 4.0], [2.0, 4.0, 120.0], [1.0, 1.0, 1.0])
+    """
+    errs = {m: np.asarray(e, dtype=np.float64).ravel() for m, e in errors.items()}
+    tilt = np.asarray(tilt_gt_deg, dtype=np.float64).ravel()
+    if "pan" in errs:
+        if errs["pan"].size != tilt.size:
+            raise ValueError(f"table_values needs equal lengths, got {errs['pan'].size} and {tilt.size}")
+        errs["pan_all"] = errs["pan"]
+        errs["pan"] = errs["pan"][pan_defined(tilt)]
+    return {m: errs[m] for m in _metric_order(errs)}
+
+
+def _stats_by_metric(errors: dict[str, np.ndarray], mask, defined) -> dict:
+    """Stats of each metric over the images ``mask``; pan over ``mask & defined`` with the
+    count of zenith lights left out (``zenith_left_out``), and ``pan_all`` over ``mask``."""
+    out = {}
+    for m, e in errors.items():
+        if m == "pan":
+            out["pan"] = summary_stats(e[mask & defined]) | {ZENITH_KEY: int(np.sum(mask & ~defined))}
+        else:
+            out[m] = summary_stats(e[mask])
+    if "pan" in errors:
+        out["pan_all"] = summary_stats(errors["pan"][mask])
+    return {m: out[m] for m in _metric_order(out)}
 
 
 def error_tables(errors: dict[str, np.ndarray], tilt_gt_deg, pan_rel_gt_deg) -> dict:
@@ -228,10 +277,20 @@ def error_tables(errors: dict[str, np.ndarray], tilt_gt_deg, pan_rel_gt_deg) -> 
     Returns:
         ``{"overall": {metric: stats}, "tilt_levels": {"L1": {metric: stats}, ...},
         "pan_levels": {"front": {metric: stats}, ...}}``; empty levels have n = 0.
+        ``"pan"`` is scored where pan is defined (true tilt < 90) and its stats carry
+        ``"zenith_left_out"``, the group's lights at the zenith; ``"pan_all"`` holds the
+        pan error over every light of the group.
 
-    >>> t = error_tables({"pan": [2.0, 4.0]}, tilt_gt_deg=[40.0, 80.0], pan_rel_gt_deg=[90.0, 90.0])
-    >>> t["overall"]["pan"]["mean"], t["tilt_levels"]["L1"]["pan"]["n"], t["pan_levels"]["right"]["pan"]["n"]
-    (3.0, 1, 1)
+    Two lights below the zenith (pan errors 2 and 4) and one at it (120): pan 3.0 over 2
+    lights with 1 left out, 42.0 over all three:
+
+    >>> t = error_tables({"pan": [2.0, 4.0, 120.0]}, tilt_gt_deg=[40.0, 80.0, 90.0],
+    ...                  pan_rel_gt_deg=[90.0, 90.0, 90.0])
+    >>> o = t["overall"]
+    >>> o["pan"]["mean"], o["pan"]["n"], o["pan"]["zenith_left_out"], o["pan_all"]["mean"]
+    (3.0, 2, 1, 42.0)
+    >>> t["tilt_levels"]["L3"]["pan"]["n"], t["tilt_levels"]["L3"]["pan"]["zenith_left_out"]
+    (1, 1)
     """
     errs = {m: np.asarray(e, dtype=np.float64).ravel() for m, e in errors.items()}
     tilt = np.asarray(tilt_gt_deg, dtype=np.float64).ravel()
@@ -239,11 +298,11 @@ def error_tables(errors: dict[str, np.ndarray], tilt_gt_deg, pan_rel_gt_deg) -> 
     sizes = {m: e.size for m, e in errs.items()} | {"tilt_gt": tilt.size, "pan_rel_gt": pan.size}
     if len(set(sizes.values())) > 1:
         raise ValueError(f"error_tables needs equal lengths, got {sizes}")
-    tl, pl = tilt_level(tilt), pan_level(pan, tilt)
+    tl, pl, defined = tilt_level(tilt), pan_level(pan, tilt), pan_defined(tilt)
     return {
-        "overall": _stats_by_metric(errs, np.ones(tilt.size, dtype=bool)),
-        "tilt_levels": {name: _stats_by_metric(errs, tl == name) for name in TILT_LEVELS},
-        "pan_levels": {name: _stats_by_metric(errs, pl == name) for name in PAN_LEVELS},
+        "overall": _stats_by_metric(errs, np.ones(tilt.size, dtype=bool), defined),
+        "tilt_levels": {name: _stats_by_metric(errs, tl == name, defined) for name in TILT_LEVELS},
+        "pan_levels": {name: _stats_by_metric(errs, pl == name, defined) for name in PAN_LEVELS},
     }
 
 
@@ -251,10 +310,10 @@ def pan_where_defined(pan_error_deg, tilt_gt_deg) -> dict:
     """The pan error split at the zenith, where a light's pan is undefined.
 
     A light at tilt 90 casts the same image whatever its pan, so its pan error is that of
-    a guess (uniform on [0, 180], mean 90) and lifts the mean pan error of a set by about
-    90 deg x its share of zenith lights. Table 1 keeps the paper's definition (all
-    images); this adds ``{"zenith": stats of the lights at tilt >= 90, "below_zenith":
-    stats of the rest}`` beside it.
+    a guess (uniform on [0, 180], mean 90) and would lift the mean pan error of a set by
+    about 90 deg x its share of zenith lights. The tables score pan over the lights below
+    the zenith (:func:`error_tables`); this gives both parts: ``{"zenith": stats of the
+    lights at tilt >= 90, "below_zenith": stats of the rest}``.
 
     >>> d = pan_where_defined([3.0, 5.0, 120.0], [40.0, 85.0, 90.0])
     >>> d["zenith"]["n"], d["zenith"]["mean"], d["below_zenith"]["n"], d["below_zenith"]["mean"]
@@ -273,9 +332,12 @@ def format_pan_where_defined(split: dict) -> str:
     z, b = split["zenith"], split["below_zenith"]
     if z["n"] == 0:
         return ""
-    return (f"Pan is undefined for a light at the zenith: {z['n']} of {z['n'] + b['n']} images have true "
-            f"tilt 90, their pan error is a guess's (mean {z['mean']:.2f}). Pan over the other {b['n']}: "
-            f"mean {b['mean']:.2f}, median {b['median']:.2f}.\n")
+    n = z["n"] + b["n"]
+    everything = (z["mean"] * z["n"] + b["mean"] * b["n"]) / n
+    return (f"Pan is undefined for a light at the zenith: {z['n']} of {n} images have true tilt 90 and "
+            f"are left out of the pan error (theirs is a guess's, mean {z['mean']:.2f}). Pan over the other "
+            f"{b['n']}: mean {b['mean']:.2f}, median {b['median']:.2f}; over all {n} lights: mean "
+            f"{everything:.2f}.\n")
 
 
 def pan_by_tilt(pan_error_deg, tilt_gt_deg, step_deg: float = TILT_STEP_DEG) -> list[dict]:
@@ -320,8 +382,12 @@ def format_pan_by_tilt(rows: list[dict]) -> str:
 
 
 def _metric_order(group: dict) -> list[str]:
-    """Metric names of one group ({metric: stats}), the paper's order first."""
-    return [m for m in METRICS if m in group] + [m for m in group if m not in METRICS]
+    """Metric names of one group ({metric: stats}), the tables' order first."""
+    return [m for m in TABLE_METRICS if m in group] + [m for m in group if m not in TABLE_METRICS]
+
+
+def _label(metric: str) -> str:
+    return METRIC_LABELS.get(metric, metric.capitalize())
 
 
 def _fmt(x) -> str:
@@ -329,15 +395,20 @@ def _fmt(x) -> str:
 
 
 def _table(title: str, key_header: str, groups: dict, stats, key_label) -> list[str]:
+    """One markdown table; a group's ``n`` counts all its images, and beside the pan
+    column (scored below the zenith) a ``Zenith left out`` column gives the lights it skips."""
     metrics = _metric_order(next(iter(groups.values())))
-    head = ([key_header] if key_header else []) + ["Stat", "n"] + [m.capitalize() for m in metrics]
+    columns = [c for m in metrics for c in ((m, ZENITH_KEY) if m == "pan" else (m,))]
+    head = (([key_header] if key_header else []) + ["Stat", "n"]
+            + ["Zenith left out" if c == ZENITH_KEY else _label(c) for c in columns])
     lines = [f"**{title}**", "", "| " + " | ".join(head) + " |",
-             "|" + "|".join(["---"] * (len(head) - len(metrics)) + ["---:"] * len(metrics)) + "|"]
+             "|" + "|".join(["---"] * (len(head) - len(columns)) + ["---:"] * len(columns)) + "|"]
     for key, group in groups.items():
-        n = group[metrics[0]]["n"] if metrics else 0
+        n = group[metrics[0]]["n"] + group[metrics[0]].get(ZENITH_KEY, 0) if metrics else 0
         for stat in stats:
             cells = ([key_label(key)] if key_header else []) + [STAT_LABELS.get(stat, stat), str(n)]
-            cells += [_fmt(group[m][stat]) for m in metrics]
+            cells += [str(group["pan"].get(ZENITH_KEY, "-")) if c == ZENITH_KEY else _fmt(group[c][stat])
+                      for c in columns]
             lines.append("| " + " | ".join(cells) + " |")
     return lines + [""]
 
@@ -347,8 +418,10 @@ def format_tables(tables: dict, stats=("mean", "median"), only_table1: bool = Fa
     Table 1 alone with ``only_table1`` (what the commands print).
 
     Table 1: overall (rows: one per stat). Table 2: tilt levels L1..L3 x stat.
-    Table 3: pan levels front/right/back/left x stat. Every row shows its n;
-    statistics of empty groups print as "n/a".
+    Table 3: pan levels front/right/back/left x stat. Every row shows its n (all the
+    group's images); pan is scored below the zenith, with the zenith lights left out
+    counted beside it and the all-lights pan as the last column; statistics of empty
+    groups print as "n/a".
 
     >>> t = error_tables({"pan": [2.0]}, tilt_gt_deg=[40.0], pan_rel_gt_deg=[90.0])
     >>> format_tables(t).splitlines()[0]

@@ -47,6 +47,7 @@ PAPER_PAN = {"front": (6.87, 5.10, 9.10, 0.98), "right": (6.24, 5.12, 8.80, 0.96
 STAGE_WORDS = {2: "Two", 3: "Three", 4: "Four", 5: "Five"}
 GENERATE_FLAGS = ("res", "spp", "target_rmse", "sampler", "colour_prior", "object_parts", "backgrounds",
                   "max_depth", "mesh_dir")
+PRESET_FLAGS = ("colour_prior", "object_parts", "light_colour")   # set by --preset sid2-paper
 
 
 def _copy(src: str, dst: str) -> None:
@@ -78,8 +79,9 @@ def settings_text(card: dict) -> str:
     cfg = dataset_settings(card)
     lo, hi = cfg["object_parts"]
     parts = "one colour per object" if hi == 1 else f"objects of {lo if lo == hi else f'{lo}-{hi}'} coloured parts"
+    light = "" if cfg.get("light_colour", "planckian") == "planckian" else f", {cfg['light_colour']} light colours"
     return (f"{cfg['res']} px, {noise_text(card)}, colour prior {cfg['colour_prior']}, {parts}, "
-            f"{cfg['backgrounds']} backgrounds")
+            f"{cfg['backgrounds']} backgrounds{light}")
 
 
 def generate_command(card: dict, path: str, count: int) -> tuple[str, str]:
@@ -89,25 +91,31 @@ def generate_command(card: dict, path: str, count: int) -> tuple[str, str]:
     without an option go into ``--config CONFIG.json``, which the note spells out)."""
     import dataclasses
 
-    from relight.scene.sampling import GeneratorConfig
+    from relight.scene.sampling import GeneratorConfig, is_sid2_paper
     default = json.loads(json.dumps(dataclasses.asdict(GeneratorConfig())))
     cfg = dataset_settings(card)
+    preset = is_sid2_paper(cfg)
     opts = [f"--count {count}", f"--out {path}", f"--seed {card['seed']}"]
+    if preset:   # the preset's own settings go without saying
+        opts.insert(0, "--preset sid2-paper")
     if cfg.get("res") != default["res"]:
         opts.append(f"--res {cfg['res']}")
     if cfg.get("spp") is not None:
         opts.append(f"--spp {cfg['spp']}")
     else:
         opts.append(f"--target-rmse {cfg['target_rmse']:g}")
-    opts += [f"--sampler {cfg['sampler']}", f"--colour-prior {cfg['colour_prior']}"]
-    lo, hi = cfg["object_parts"]
-    opts.append(f"--object-parts {lo}" if lo == hi else f"--object-parts {lo}-{hi}")
+    opts.append(f"--sampler {cfg['sampler']}")
+    if not preset:
+        opts.append(f"--colour-prior {cfg['colour_prior']}")
+        lo, hi = cfg["object_parts"]
+        opts.append(f"--object-parts {lo}" if lo == hi else f"--object-parts {lo}-{hi}")
     opts.append(f"--backgrounds {cfg['backgrounds']}")
     if cfg.get("max_depth", default["max_depth"]) != default["max_depth"]:
         opts.append(f"--max-depth {cfg['max_depth']}")
     if cfg.get("mesh_dir"):
         opts.append(f"--mesh-dir {cfg['mesh_dir']}")
-    other = {k: v for k, v in cfg.items() if k in default and k not in GENERATE_FLAGS and v != default[k]}
+    other = {k: v for k, v in cfg.items() if k in default and k not in GENERATE_FLAGS and v != default[k]
+             and not (preset and k in PRESET_FLAGS)}
     note = ""
     if other:
         opts.append("--config CONFIG.json")
@@ -276,17 +284,18 @@ def other_test_rows(other_evals: dict, test_card: dict) -> str:
     sets: ``{name: (test_dir, eval_dir)}``; each row names the generator settings in which
     its set differs from the main test set (``test_card``)."""
     main = settings_text(test_card).split(", ")
-    lines = ["| Test set | Differs from the main test set in | Images | Pan | Tilt | Direction | Colour | "
-             "Colour median | 90% cones cover |",
-             "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    lines = ["| Test set | Differs from the main test set in | Images | Pan (tilt < 90) | Zenith left out | Tilt | "
+             "Direction | Colour | Colour median | 90% cones cover | Pan, all lights |",
+             "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for name, (test_dir, eval_dir) in other_evals.items():
         ev = json.load(open(os.path.join(eval_dir, "metrics.json")))
         o = ev["tables"]["overall"]
         differs = [part for part in settings_text(read_card(test_dir)).split(", ") if part not in main]
         cover = ev.get("uncertainty", {}).get("cone90_coverage")
         lines.append(f"| {name} (`{test_dir}`) | {', '.join(differs) or 'the seed only'} | {ev['n']} | "
-                     + " | ".join(f"{o[m]['mean']:.2f}" for m in METRICS) + f" | {o['colour']['median']:.2f} | "
-                     + ("-" if cover is None else f"{100 * cover:.1f}%") + " |")
+                     + f"{_mean(o['pan'])} | {zenith_count(o)} | "
+                     + " | ".join(f"{o[m]['mean']:.2f}" for m in METRICS[1:]) + f" | {o['colour']['median']:.2f} | "
+                     + ("-" if cover is None else f"{100 * cover:.1f}%") + f" | {_mean(pan_all(o))} |")
     lines.append("")
     for name, (test_dir, _) in other_evals.items():   # how to make each set
         cmd, note = generate_command(read_card(test_dir), test_dir, len(read_manifest(test_dir)))
@@ -294,13 +303,47 @@ def other_test_rows(other_evals: dict, test_card: dict) -> str:
     return "\n".join(lines)
 
 
+def _mean(stats: dict) -> str:
+    """A stats dict's mean with 2 decimals ("n/a" for an empty group)."""
+    return "n/a" if not stats.get("n") else f"{stats['mean']:.2f}"
+
+
+def zenith_count(group: dict) -> str:
+    """The zenith lights a table group's pan leaves out ("-" for an evaluation made before
+    pan was scored below the zenith only)."""
+    return str(group["pan"].get("zenith_left_out", "-"))
+
+
+def pan_all(group: dict) -> dict:
+    """The all-lights pan stats of a table group (``pan_all``; an evaluation made before
+    that column existed held them under ``pan``)."""
+    return group.get("pan_all", group["pan"])
+
+
 def level_rows(tables: dict, group: str, paper: dict) -> str:
+    """Rows of the card's Table 2-3 comparison: the paper's means, ours (pan below the
+    zenith), the zenith lights left out, and the group's images."""
     out = []
     for name, ref in paper.items():
         g = tables[group][name]
-        ours = " | ".join(f"{g[m]['mean']:.2f}" for m in METRICS)
-        out.append(f"| {name} | {' | '.join(f'{v:.2f}' for v in ref)} | {ours} | {g['pan']['n']} |")
+        ours = " | ".join(_mean(g[m]) for m in METRICS)
+        out.append(f"| {name} | {' | '.join(f'{v:.2f}' for v in ref)} | {ours} | {zenith_count(g)} | "
+                   f"{g['tilt']['n']} |")
     return "\n".join(out)
+
+
+def table1_rows(overall: dict) -> list[str]:
+    """The card's Table 1 rows (paper, ours mean and median): pan scored over the lights
+    below the zenith with the count left out in its label, then tilt, direction, colour,
+    and the all-lights pan as its own row (the paper gives no such figure)."""
+    z = zenith_count(overall)
+    label = {"pan": f"Pan (tilt < 90; {z} zenith lights left out)" if z != "-" else "Pan (all lights)",
+             "tilt": "Tilt", "direction": "Direction",
+             "colour": "Colour"}
+    rows = [f"| {label[m]} | {PAPER[m]:.2f} | {_mean(overall[m])} | "
+            f"{'n/a' if not overall[m].get('n') else format(overall[m]['median'], '.2f')} |" for m in METRICS]
+    a = pan_all(overall)
+    return rows + [f"| Pan, all lights | - | {_mean(a)} | {a['median']:.2f} |"]
 
 
 def _fine_tune_why(before: dict, after: dict, default_data: str) -> str:
@@ -320,7 +363,7 @@ def mirror_line(mirror_eval_dir: str | None, test_data: str) -> str:
     o = ev["tables"]["overall"]
     cones = ev.get("uncertainty", {}).get("cone90_coverage")
     return (f"With `--mirror-average` (each image and its mirror image, the two predictions averaged; about "
-            f"1.8x the time), mean errors: pan {o['pan']['mean']:.2f}, tilt {o['tilt']['mean']:.2f}, direction "
+            f"1.8x the time), mean errors: pan (tilt < 90) {_mean(o['pan'])}, tilt {o['tilt']['mean']:.2f}, direction "
             f"{o['direction']['mean']:.2f}, colour {o['colour']['mean']:.2f}"
             + (f"; the 90% cones cover {100 * cones:.1f}%" if cones is not None else "")
             + f" (`relight evaluate --data {test_data} --split all --mirror-average --out REPORT`).\n\n")
@@ -394,8 +437,7 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
     final_lines = data_lines[-n_final:]
     test_card = read_card(test_data)
     test_cmd, test_note = generate_command(test_card, test_data, len(read_manifest(test_data)))
-    table1 = "\n".join(f"| {m.capitalize()} | {PAPER[m]:.2f} | {overall[m]['mean']:.2f} | "
-                       f"{overall[m]['median']:.2f} |" for m in METRICS)
+    table1 = "\n".join(table1_rows(overall))
     pan_line = format_pan_where_defined(ev["pan_where_defined"]) if "pan_where_defined" in ev else ""
     if pan_line:   # said once, beside Table 1, not again inside the embedded report
         report = report.replace("\n" + pan_line, "", 1)
@@ -480,8 +522,8 @@ all {ev['n']} images, errors in degrees:
 {pan_line}{mirror_line(mirror_eval_dir, test_data)}Paper Table 2 (tilt levels) and Table 3 (pan levels, tilt 30-70) next to ours (means;
 paper columns first):
 
-| Level | Paper pan | Paper tilt | Paper dir. | Paper colour | Pan | Tilt | Dir. | Colour | n |
-|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|
+| Level | Paper pan | Paper tilt | Paper dir. | Paper colour | Pan (tilt < 90) | Tilt | Dir. | Colour | Zenith left out | n |
+|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|
 {level_rows(ev['tables'], 'tilt_levels', PAPER_TILT)}
 {level_rows(ev['tables'], 'pan_levels', PAPER_PAN)}
 

@@ -167,3 +167,53 @@ def test_shared_hue_likelihood_integrates_the_base_hue():
     direct = chromaticity_log_density(np.array([texture_colours(rng, 1, "hsv")[0] for _ in range(100_000)]))
     bulk = direct > np.log(0.01) + direct.max()       # where the density is at least 1% of its peak
     assert bulk.sum() > 500 and np.median(np.abs(marginal - direct)[bulk]) < 0.1
+
+
+def _bench():
+    import importlib.util
+    import os
+    spec = importlib.util.spec_from_file_location(
+        "bench_colour_floor", os.path.join(os.path.dirname(__file__), "..", "benchmarks", "bench_colour_floor.py"))
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    return bench
+
+
+def test_library_likelihood_identifies_the_light_of_a_known_background():
+    """--preset sid2-paper on library backgrounds: an observer who knows the library reads
+    the light off two colours of one background; its posterior over the 80 Tanner-Helland
+    lights peaks at the true one, and the floor is its error (0 here)."""
+    from relight.colour import kelvin_to_rgb_tanner_helland
+    from relight.metrics import colour_error_deg
+    from relight.scene.albedo import posterior_mean_light
+    from relight.scene.textures import background_library
+    bench = _bench()
+    cands = bench.light_candidates({"light_colour": "tanner-helland"}, 4000, np.random.default_rng(0))
+    assert cands.shape == (80, 3) and np.allclose(np.linalg.norm(cands, axis=1), 1.0)
+    th = kelvin_to_rgb_tanner_helland(np.array([2000.0, 9900.0]))
+    assert np.allclose(cands[[0, -1]], th / np.linalg.norm(th, axis=1, keepdims=True))
+    assert bench.light_candidates({}, 30, np.random.default_rng(0)).shape == (30, 3)   # relight's prior
+    wall, floor = background_library()[7]
+    for true in (5, 40, 77):
+        light = cands[true]
+        seen = [(0, np.array(wall["colors"][:2])), (1, np.array(floor["colors"][:1]))]
+        logp = bench.library_logpdf(seen, light, cands)
+        assert int(np.argmax(logp)) == true
+        assert float(colour_error_deg(posterior_mean_light(logp[None], cands), light)) < 0.05
+
+
+def test_scene_floor_of_the_paper_preset_seen_and_unseen(mi, tmp_path):
+    """On library backgrounds the floor is near 0 (the observer knows the backgrounds); on
+    unseen ones it stays finite and above it on the same scenes' seeds."""
+    from relight.dataset import generate
+    from relight.scene.sampling import sid2_paper_config
+    bench = _bench()
+    rows = {}
+    for mode in ("library", "unseen"):
+        data = tmp_path / mode
+        generate(data, 3, seed=4, cfg=sid2_paper_config(res=48, spp=1, backgrounds=mode), progress=False)
+        rows[mode] = bench.scene_floors(str(data), 3, texture_draws=5_000)
+        assert all(0 <= r["floor_deg"] < 30 for r in rows[mode])
+    seen = [r for r in rows["library"] if r["textures"]]
+    assert seen and all(r["floor_deg"] < 0.2 for r in seen), rows["library"]
+    assert np.mean([r["floor_deg"] for r in rows["unseen"]]) > np.mean([r["floor_deg"] for r in seen])

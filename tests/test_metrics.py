@@ -153,13 +153,18 @@ def test_error_tables_structure_and_values():
     assert set(t) == {"overall", "tilt_levels", "pan_levels"}
     assert list(t["tilt_levels"]) == ["L1", "L2", "L3"]
     assert list(t["pan_levels"]) == ["front", "right", "back", "left"]
-    assert set(t["overall"]) == {"pan", "tilt", "direction", "colour"}
-    assert t["overall"]["pan"]["n"] == 8
-    assert t["overall"]["pan"]["mean"] == pytest.approx(3.5)
+    assert list(t["overall"]) == ["pan", "tilt", "direction", "colour", "pan_all"]
+    # pan where defined: index 5 (tilt 90) left out -> mean of 0..7 without 5 = 23 / 7
+    assert t["overall"]["pan"]["n"] == 7 and t["overall"]["pan"]["zenith_left_out"] == 1
+    assert t["overall"]["pan"]["mean"] == pytest.approx(23.0 / 7.0)
+    assert t["overall"]["pan_all"]["n"] == 8 and t["overall"]["pan_all"]["mean"] == pytest.approx(3.5)
+    assert t["overall"]["tilt"]["n"] == 8
     # L1: indices 0, 1, 6 -> pan errors 0, 1, 6
     assert t["tilt_levels"]["L1"]["pan"]["n"] == 3
     assert t["tilt_levels"]["L1"]["pan"]["mean"] == pytest.approx(7.0 / 3.0)
     assert t["tilt_levels"]["L3"]["tilt"]["median"] == pytest.approx(9.0)  # indices 4, 5
+    assert t["tilt_levels"]["L3"]["pan"]["n"] == 1 and t["tilt_levels"]["L3"]["pan"]["zenith_left_out"] == 1
+    assert t["tilt_levels"]["L3"]["pan"]["mean"] == pytest.approx(4.0)     # index 4 only
     # front: indices 0, 6 (index 4 has tilt 75, excluded); right: 1, 7
     assert t["pan_levels"]["front"]["direction"]["n"] == 2
     assert t["pan_levels"]["front"]["direction"]["mean"] == pytest.approx(3.5)
@@ -173,11 +178,12 @@ def test_format_tables_contains_numbers():
     errors, tilt, pan = _example()
     text = m.format_tables(m.error_tables(errors, tilt, pan))
     assert text.count("Table ") == 3
-    assert "| Pan | Tilt | Direction | Colour |" in text
-    assert "| Mean | 8 | 3.50 | 7.00 | 4.00 | 1.25 |" in text
-    assert "| Median | 8 | 3.50 | 7.00 | 4.00 | 1.25 |" in text
-    assert "| L1 [30, 50) | Mean | 3 | 2.33 | 4.67 | 2.83 | 1.25 |" in text
-    assert "| front [315, 45) | Median | 2 | 3.00 | 6.00 | 3.50 | 1.25 |" in text
+    assert "| Pan (tilt < 90) | Zenith left out | Tilt | Direction | Colour | Pan, all lights |" in text
+    assert "| Mean | 8 | 3.29 | 1 | 7.00 | 4.00 | 1.25 | 3.50 |" in text
+    assert "| Median | 8 | 3.00 | 1 | 7.00 | 4.00 | 1.25 | 3.50 |" in text
+    assert "| L1 [30, 50) | Mean | 3 | 2.33 | 0 | 4.67 | 2.83 | 1.25 | 2.33 |" in text
+    assert "| L3 [70, 90] | Mean | 2 | 4.00 | 1 | 9.00 | 5.00 | 1.25 | 4.50 |" in text
+    assert "| front [315, 45) | Median | 2 | 3.00 | 0 | 6.00 | 3.50 | 1.25 | 3.00 |" in text
     assert "L3 [70, 90]" in text
     extra = m.format_tables(m.error_tables(errors, tilt, pan), stats=("trimean", "worst25"))
     assert "Trimean" in extra and "Worst 25%" in extra and "| Mean |" not in extra
@@ -185,6 +191,40 @@ def test_format_tables_contains_numbers():
     assert "n/a" in m.format_tables(m.error_tables(empty, tilt[:0], pan[:0]))
     with pytest.raises(ValueError):
         m.format_tables(m.error_tables(errors, tilt, pan), stats=("average",))
+
+
+def test_table_pan_leaves_out_the_zenith_lights_and_counts_them():
+    """A constructed set, one light at each SID2 tilt 30, 35, ..., 90 (13 lights) and a second
+    at the zenith: each light below the zenith is predicted d = tilt / 10 degrees of pan off,
+    the zenith lights at an arbitrary pan. In closed form the table's pan is the mean of d
+    over the 12 lights below the zenith, (3 + 3.5 + ... + 8.5) / 12 = 5.75, with 2 zenith
+    lights left out; the all-lights column is (12 x 5.75 + e_z1 + e_z2) / 14."""
+    tilt = np.array(list(np.arange(30.0, 91.0, 5.0)) + [90.0])
+    pan_gt = np.linspace(0.0, 330.0, tilt.size)
+    d = tilt / 10.0
+    pan_pred = np.where(tilt < 90.0, pan_gt + d, pan_gt + np.array([0.0] * 12 + [150.0, -100.0]))
+    rgb = np.ones((tilt.size, 3))
+    e = m.light_errors(pan_pred, tilt, rgb, pan_gt, tilt, rgb)
+    assert e["direction"][tilt == 90.0] == pytest.approx([0.0, 0.0], abs=1e-6)   # no pan at the zenith
+    t = m.error_tables(e, tilt, pan_gt)["overall"]
+    assert t["pan"]["zenith_left_out"] == 2 and t["pan"]["n"] == 12
+    assert t["pan"]["mean"] == pytest.approx(np.arange(3.0, 8.6, 0.5).mean(), abs=1e-9) == pytest.approx(5.75)
+    assert t["pan_all"]["n"] == 14 and t["pan_all"]["mean"] == pytest.approx((12 * 5.75 + 150.0 + 100.0) / 14)
+    assert t["tilt"]["n"] == t["direction"]["n"] == t["colour"]["n"] == 14
+    table1 = m.format_tables(m.error_tables(e, tilt, pan_gt), only_table1=True)
+    assert "| Mean | 14 | 5.75 | 2 | 0.00 | " in table1
+    values = m.table_values(e, tilt)
+    assert values["pan"].size == 12 and values["pan_all"].size == 14 and list(values)[-1] == "pan_all"
+    # a set without zenith lights: nothing left out, the two pan columns agree
+    below = tilt < 90.0
+    t2 = m.error_tables({k: v[below] for k, v in e.items()}, tilt[below], pan_gt[below])["overall"]
+    assert t2["pan"]["zenith_left_out"] == 0 and t2["pan"]["mean"] == t2["pan_all"]["mean"]
+    # only zenith lights: pan has no value, the count says why
+    at = ~below
+    t3 = m.error_tables({k: v[at] for k, v in e.items()}, tilt[at], pan_gt[at])["overall"]
+    assert t3["pan"]["n"] == 0 and t3["pan"]["zenith_left_out"] == 2 and np.isnan(t3["pan"]["mean"])
+    assert "| Mean | 2 | n/a | 2 |" in m.format_tables(m.error_tables({k: v[at] for k, v in e.items()}, tilt[at],
+                                                                      pan_gt[at]), only_table1=True)
 
 
 def test_pan_by_tilt_shows_the_pan_error_growing_towards_the_zenith():
@@ -232,6 +272,7 @@ def test_pan_where_defined_separates_the_zenith_guesses():
     assert parts / tilt.size == pytest.approx(err.mean(), rel=1e-12)
     line = m.format_pan_where_defined(d)
     assert f"{d['below_zenith']['mean']:.2f}" in line and f"{at.sum()} of {tilt.size}" in line
+    assert f"over all {tilt.size} lights: mean {err.mean():.2f}" in line
     assert m.format_pan_where_defined(m.pan_where_defined(err[~at], tilt[~at])) == ""
     with pytest.raises(ValueError):
         m.pan_where_defined(err, tilt[:-1])

@@ -180,7 +180,15 @@ def test_cli_evaluate_writes_report(tiny, model_file, tmp_path):
     # the pan error by true tilt: its rows add up to Table 1's mean pan error
     by_tilt = metrics_doc["pan_by_tilt"]
     assert sum(r["n"] for r in by_tilt) == 8
-    assert sum(r["share"] for r in by_tilt) == pytest.approx(tables["overall"]["pan"]["mean"], rel=1e-9)
+    assert sum(r["share"] for r in by_tilt) == pytest.approx(tables["overall"]["pan_all"]["mean"], rel=1e-9)
+    # Table 1's pan: the lights below the zenith, the zenith ones counted beside it
+    zenith = [float(r["tilt_gt_deg"]) >= 90.0 for r in rows]
+    assert tables["overall"]["pan"]["zenith_left_out"] == sum(zenith)
+    assert tables["overall"]["pan"]["n"] == 8 - sum(zenith)
+    if sum(zenith) < 8:
+        assert tables["overall"]["pan"]["mean"] == pytest.approx(
+            np.mean([float(r["pan_err_deg"]) for r, z in zip(rows, zenith) if not z]), abs=1e-3)
+    assert "| Zenith left out |" in open(rep / "report.md").read()
     assert "Pan error by true light tilt" in open(rep / "report.md").read()
 
 

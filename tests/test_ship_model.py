@@ -55,6 +55,25 @@ def test_generate_command_and_settings_name_the_backgrounds(ship_model):
     assert ship_model.settings_text(card).endswith(", mosaic backgrounds")
 
 
+def test_generate_command_of_the_sid2_paper_preset(ship_model):
+    """A card of `--preset sid2-paper` gives the command with the preset (its settings not
+    repeated) and the backgrounds it used; a card that only shares some of them does not."""
+    import dataclasses
+    from relight.scene.sampling import sid2_paper_config
+    for backgrounds in ("library", "unseen"):
+        config = json.loads(json.dumps(dataclasses.asdict(sid2_paper_config(backgrounds=backgrounds, res=64))))
+        cmd, note = ship_model.generate_command({"seed": 8, "spp": 16, "config": config}, "d", 200)
+        assert cmd.startswith("relight generate --preset sid2-paper --count 200 --out d --seed 8 --res 64 ")
+        assert cmd.endswith(f"--backgrounds {backgrounds}") and note == ""
+        assert "--colour-prior" not in cmd and "--object-parts" not in cmd
+        assert ship_model.settings_text({"seed": 8, "spp": 16, "config": config}).endswith(
+            f"{backgrounds} backgrounds, tanner-helland light colours")
+    config["object_parts"] = [1, 32]
+    cmd, note = ship_model.generate_command({"seed": 8, "spp": 16, "config": config}, "d", 200)
+    assert "--preset" not in cmd and "--colour-prior pastel --object-parts 1-32" in cmd
+    assert '"light_colour": "tanner-helland"' in note
+
+
 def test_generate_command_of_a_legacy_card(ship_model):
     """Cards written before the sampler and prior fields: independent sampler, hsv prior."""
     card = {"seed": 1, "config": {"res": 64, "spp": 32, "max_depth": 4}}
@@ -62,6 +81,21 @@ def test_generate_command_of_a_legacy_card(ship_model):
     assert "--res 64 --spp 32 --sampler independent --colour-prior hsv --object-parts 1 --backgrounds patterns" in cmd
     assert "--target-rmse" not in cmd and "--config" not in cmd and note == ""
     assert ship_model.noise_text(card) == "sampler independent, 32 spp (fixed)"
+
+
+def test_table1_rows_score_pan_below_the_zenith_and_count_the_rest(ship_model):
+    """The card's Table 1 from an evaluation's tables: pan (tilt < 90) with the zenith lights
+    left out in its label, and the all-lights pan as its own row; 3 lights below the zenith
+    (pan errors 2, 4, 6) and 1 at it (pan error 100): 4.00 and (12 + 100) / 4 = 28.00."""
+    from relight.metrics import error_tables
+    errors = {"pan": [2.0, 4.0, 6.0, 100.0], "tilt": [1.0] * 4, "direction": [1.0] * 4, "colour": [0.5] * 4}
+    overall = error_tables(errors, [30.0, 60.0, 85.0, 90.0], [0.0] * 4)["overall"]
+    rows = ship_model.table1_rows(overall)
+    assert rows[0] == "| Pan (tilt < 90; 1 zenith lights left out) | 10.46 | 4.00 | 4.00 |"
+    assert rows[-1] == "| Pan, all lights | - | 28.00 | 5.00 |"
+    assert [r.split(" | ")[0] for r in rows[1:4]] == ["| Tilt", "| Direction", "| Colour"]
+    old = {m: {k: v for k, v in st.items() if k != "zenith_left_out"} for m, st in overall.items() if m != "pan_all"}
+    assert ship_model.table1_rows(old)[0].startswith("| Pan (all lights) | 10.46 | 4.00 |")   # made before the rule
 
 
 def test_architecture_text_names_each_encoders_modules(ship_model):
@@ -250,6 +284,8 @@ def test_card_of_a_run_on_two_folders(ship_model, world, tmp_path, monkeypatch, 
     row = next(line for line in card.splitlines() if line.startswith("| munsell ("))
     assert "| 4 spp (fixed), colour prior munsell |" in row
     assert "colour prior hsv" not in row and "32 px" not in row   # settings both sets share are left out
-    assert " | ".join(f"{overall[m]['mean']:.2f}" for m in ("pan", "tilt", "direction", "colour")) in row
+    assert (f"| {overall['pan']['mean']:.2f} | {overall['pan']['zenith_left_out']} | "
+            + " | ".join(f"{overall[m]['mean']:.2f}" for m in ("tilt", "direction", "colour"))) in row
+    assert row.endswith(f"| {overall['pan_all']['mean']:.2f} |")
     assert f"--other-test munsell={other} " in card
     assert f"- munsell: `relight generate --count 4 --out {other} --seed 23 " in card

@@ -28,9 +28,11 @@ def add_commands(sub) -> None:
     g.add_argument("--colour-prior", choices=PRIORS, default=None,
                    help="surface-colour prior of textures and objects (default hsv; see README)")
     g.add_argument("--backgrounds", choices=BACKGROUNDS, default=None,
-                   help="wall and floor textures: patterns (default; 2-5 colours each) or mosaic "
+                   help="wall and floor textures: patterns (default; 2-5 colours each), mosaic "
                         "(grids of 4-16 x 4-16 independently coloured cells: many surfaces in "
-                        "view; see README)")
+                        "view), library (one of a closed set of 250 backgrounds per scene, shared by "
+                        "every set; --preset sid2-paper's default) or unseen (drawn like the "
+                        "library's, sharing none of its colours); see docs/table1.md")
     g.add_argument("--object-parts", type=at.object_parts, default=None, metavar="N|LO-HI",
                    help="independently coloured parts per object, N or a range drawn per object "
                         "(the paper colours each mesh part; default 1-32; see README)")
@@ -42,9 +44,13 @@ def add_commands(sub) -> None:
                         "--out at the same path (default: this process, see --workers)")
     g.add_argument("--config", default=None, help="JSON file of generator settings")
     g.add_argument("--mesh-dir", default=None, help="folder of your own .obj/.ply meshes (z up)")
-    g.add_argument("--preset", choices=["sid2", "photo", "mid"], default="sid2",
-                   help="sid2 (default): the paper's SID2-style images; photo: the photo-training mix (level "
-                        "to steep cameras, 20-90 deg fields of view, low lights, half the scenes on a black void; "
+    g.add_argument("--preset", choices=["sid2", "sid2-paper", "photo", "mid"], default="sid2",
+                   help="sid2 (default): the paper's SID2-style images; sid2-paper: the same rooms with "
+                        "the paper group's colour protocol (light colour a temperature of 2000-9900 K in "
+                        "100 K steps, Tanner-Helland RGB; one of 250 library backgrounds, or --backgrounds "
+                        "unseen; pastel part colours, 1-11 parts per object; explicit options and --config "
+                        "win over it; see docs/table1.md); photo: the photo-training mix (level to steep "
+                        "cameras, 20-90 deg fields of view, low lights, half the scenes on a black void; "
                         "docs/photo.md); mid: a MID-like set (indoor rooms, "
                         "chrome + gray sphere, a flash above the camera turned to 25 directions; --count is "
                         "the number of rooms, 25 images each; --config takes its settings; see README)")

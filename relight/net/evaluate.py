@@ -2,8 +2,11 @@
 constancy statistics, a per-image CSV and a ``relight.predictions/v1`` file.
 
 Report folder contents:
-    report.md          Tables 1-3 (mean, median) + trimean / best 25% / worst 25%
-    metrics.json       the same numbers, machine-readable (relight.metrics.error_tables),
+    report.md          Tables 1-3 (mean, median) + trimean / best 25% / worst 25%; pan is
+                       scored over the lights below the zenith (tilt < 90), the zenith
+                       lights left out counted beside it, the all-lights pan its own column
+    metrics.json       the same numbers, machine-readable (relight.metrics.error_tables:
+                       "pan" with "zenith_left_out", and "pan_all"),
                        plus ``cct`` (CCT error in kelvin and mireds) and, for a model
                        with a kappa head, ``uncertainty`` (relight.net.uncertainty)
     per_image.csv      id, truth, prediction and the four errors of every image; for a
@@ -123,13 +126,18 @@ def errors_from_y(y_pred: np.ndarray, truth: dict) -> dict:
     return metrics.light_errors(pan, tilt, rgb, truth["pan_rel_deg"], truth["tilt_deg"], truth["rgb"])
 
 
-def _stats_table(errors: dict) -> str:
+def _stats_table(errors: dict, tilt_gt_deg) -> str:
+    """Colour-constancy statistics of every column of Table 1 (pan below the zenith, the
+    all-lights pan last)."""
     labels = metrics.STAT_LABELS
-    lines = ["**Colour-constancy style statistics, all images (degrees)**", "",
-             "| Stat | " + " | ".join(m.capitalize() for m in metrics.METRICS) + " |",
-             "|---|" + "---:|" * len(metrics.METRICS)]
+    values = metrics.table_values(errors, tilt_gt_deg)
+    stats = {m: metrics.summary_stats(v) for m, v in values.items()}
+    lines = ["**Colour-constancy style statistics, all images (degrees; pan over the "
+             f"{stats['pan']['n']} lights below the zenith)**", "",
+             "| Stat | " + " | ".join(metrics.METRIC_LABELS[m] for m in values) + " |",
+             "|---|" + "---:|" * len(values)]
     for s in COLOUR_STATS:
-        cells = [f"{metrics.summary_stats(errors[m])[s]:.2f}" for m in metrics.METRICS]
+        cells = ["n/a" if stats[m]["n"] == 0 else f"{stats[m][s]:.2f}" for m in values]
         lines.append(f"| {labels[s]} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
@@ -194,10 +202,14 @@ def evaluate(model, data_dir: str | os.PathLike, out_dir: str | os.PathLike, spl
     pan_tilt = metrics.pan_by_tilt(errors["pan"], truth["tilt_deg"])
     extras = extra_fields(rgb, kappa)
     from relight.colour import rgb_to_cct_duv_near_locus
-    cct_true = np.array([r["light"].get("cct_k", np.nan) if isinstance(r.get("light"), dict) else np.nan
+    # the stored CCT where the light's colour is (CCT, Duv) on relight's locus; where it has no
+    # Duv (e.g. a Tanner-Helland colour, --preset sid2-paper: its nominal kelvin is not the CCT
+    # of its RGB) or no CCT at all, the CCT of the true colour, as of the prediction's
+    cct_true = np.array([r["light"].get("cct_k", np.nan)
+                         if isinstance(r.get("light"), dict) and r["light"].get("duv") is not None else np.nan
                          for r in dataset.records], dtype=np.float64)
     missing = ~np.isfinite(cct_true)
-    if missing.any():   # datasets without a stored CCT: the true colour's
+    if missing.any():
         cct_true[missing] = rgb_to_cct_duv_near_locus(truth["rgb"][missing])[0]
     cct = cct_errors([np.nan if e["cct_k"] is None else e["cct_k"] for e in extras], cct_true)
     uncertainty = None
@@ -217,7 +229,7 @@ def evaluate(model, data_dir: str | os.PathLike, out_dir: str | os.PathLike, spl
         t.stage_text(os.path.join(out_dir, "report.md"),
                      header + metrics.format_tables(tables) + "\n"
                      + metrics.format_pan_where_defined(pan_split) + "\n" + metrics.format_pan_by_tilt(pan_tilt)
-                     + "\n" + _stats_table(errors) + "\n"
+                     + "\n" + _stats_table(errors, truth["tilt_deg"]) + "\n"
                      + _format_cct(cct, tables["overall"]["colour"])
                      + ("\n" + format_summary(uncertainty) + "\n![reliability](reliability.png)\n"
                         if uncertainty else ""))

@@ -17,6 +17,11 @@ recorded in the dataset card, every scene file and every manifest record:
     drawn uniformly, independently of the others.
 ``mixture``
     each scene draws ``hsv`` or ``munsell`` with equal odds (the scene records which).
+``pastel``
+    the objects of ``--preset sid2-paper``: one flat pastel colour per part, hue uniform,
+    sRGB saturation uniform in :data:`PASTEL_SATURATION` (0.23-0.40) and value
+    :data:`PASTEL_VALUE` (0.87), then linearised (what is known of how the paper's group
+    colours ShapeNet parts); textures as ``hsv``.
 
 All albedos are linear RGB in [ALBEDO_MIN, ALBEDO_MAX] (textures) or [0, 1]
 (objects); every random draw comes from the caller's ``numpy.random.Generator``.
@@ -29,12 +34,14 @@ import numpy as np
 
 from relight.colour import srgb_decode
 
-PRIORS: tuple[str, ...] = ("hsv", "munsell", "mixture")
+PRIORS: tuple[str, ...] = ("hsv", "munsell", "mixture", "pastel")
 DEFAULT_PRIOR = "hsv"
 ALBEDO_MIN = 0.05          # texture albedo range (linear)
 ALBEDO_MAX = 0.9
 OBJECT_RANGE = (0.1, 0.85)  # the hsv prior's object reflectance range, per channel
 MUNSELL_Y_RANGE = (0.03, 0.9)  # luminous reflectance of the Munsell chips kept
+PASTEL_SATURATION = (0.23, 0.40)   # the pastel prior's objects: sRGB HSV saturation ...
+PASTEL_VALUE = 0.87                # ... and value
 
 
 def _hsv_to_rgb(h: np.ndarray, s: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -80,9 +87,19 @@ def hsv_texture_albedos(rng: np.random.Generator, n: int, base_hue: float) -> np
     return np.clip(lin, ALBEDO_MIN, ALBEDO_MAX)
 
 
+def pastel_albedos(rng: np.random.Generator, n: int) -> np.ndarray:
+    """``(n, 3)`` linear albedos of the ``pastel`` prior: hue uniform in [0, 1), sRGB
+    saturation uniform in :data:`PASTEL_SATURATION`, value :data:`PASTEL_VALUE`, decoded
+    from sRGB (three draws per colour: hue, saturation; the value is fixed)."""
+    hue = rng.random(n)
+    sat = rng.uniform(*PASTEL_SATURATION, n)
+    return srgb_decode(_hsv_to_rgb(hue, sat, np.full(n, PASTEL_VALUE)))
+
+
 def texture_colours(rng: np.random.Generator, n: int, prior: str = "hsv") -> list[list[float]]:
-    """``n`` linear-RGB albedos for one texture; colours 0 and 1 contrast in value."""
-    if prior == "hsv":
+    """``n`` linear-RGB albedos for one texture; colours 0 and 1 contrast in value
+    (``pastel`` textures are ``hsv`` ones)."""
+    if prior in ("hsv", "pastel"):
         return _round(hsv_texture_albedos(rng, n, rng.random()))
     if prior == "munsell":
         table = munsell_albedos()
@@ -95,7 +112,7 @@ def texture_colours(rng: np.random.Generator, n: int, prior: str = "hsv") -> lis
                     break
                 idx[1] = rng.integers(0, len(table))
         return _round(np.clip(table[idx], ALBEDO_MIN, ALBEDO_MAX))
-    raise ValueError(f"unknown colour prior {prior!r}; valid: hsv, munsell")
+    raise ValueError(f"unknown colour prior {prior!r}; valid: hsv, munsell, pastel")
 
 
 def object_reflectance(rng: np.random.Generator, prior: str = "hsv") -> tuple[float, float, float]:
@@ -105,7 +122,9 @@ def object_reflectance(rng: np.random.Generator, prior: str = "hsv") -> tuple[fl
     if prior == "munsell":
         table = munsell_albedos()
         return tuple(float(np.round(c, 4)) for c in table[int(rng.integers(0, len(table)))])
-    raise ValueError(f"unknown colour prior {prior!r}; valid: hsv, munsell")
+    if prior == "pastel":
+        return tuple(float(np.round(c, 4)) for c in pastel_albedos(rng, 1)[0])
+    raise ValueError(f"unknown colour prior {prior!r}; valid: hsv, munsell, pastel")
 
 
 def box_direction_logpdf(u: np.ndarray, lights: np.ndarray, lo: float, hi: float) -> np.ndarray:

@@ -13,6 +13,10 @@ centre.
 
 Every random choice comes from one ``numpy.random.Generator`` seeded per image, so an
 image's spec depends only on (dataset seed, image index) and the config.
+
+``--preset sid2-paper`` (:func:`sid2_paper_config`) sets the paper group's colour protocol
+beside these rooms: Tanner-Helland lights in 100 K steps, a closed library of 250
+backgrounds, pastel part colours (see the block at the end of this module).
 """
 from __future__ import annotations
 
@@ -53,6 +57,7 @@ class GeneratorConfig:
     sampler: str = noise.DEFAULT_SAMPLER             # Mitsuba sampler plugin
     colour_prior: str = albedo.DEFAULT_PRIOR         # surface-colour prior (relight.scene.albedo)
     backgrounds: str = "patterns"                    # wall/floor textures (textures.BACKGROUNDS)
+    light_colour: str = "planckian"                  # colour.LIGHT_COLOURS: CCT + Duv, or Tanner-Helland
     max_depth: int = 4
     fov_deg: float = 40.0
     camera_r_m: float = 20.0
@@ -97,6 +102,9 @@ class GeneratorConfig:
         if self.backgrounds not in textures.BACKGROUNDS:
             raise ConfigError(f"backgrounds: expected one of {', '.join(textures.BACKGROUNDS)}, "
                               f"got {self.backgrounds!r}")
+        if self.light_colour not in colour.LIGHT_COLOURS:
+            raise ConfigError(f"light_colour: expected one of {', '.join(colour.LIGHT_COLOURS)}, "
+                              f"got {self.light_colour!r}")
         if self.spp is None:
             try:
                 noise.spp_for_target(self.target_rmse, self.sampler)
@@ -171,7 +179,7 @@ PRESETS: dict[str, dict] = {
 # Settings added after the first datasets, with the value every dataset made before the
 # setting existed used: a card without the key means that value (never today's default).
 LEGACY_CONFIG: dict = {"sampler": LEGACY_SAMPLER, "colour_prior": "hsv", "object_parts": [1, 1],
-                       "backgrounds": "patterns"}
+                       "backgrounds": "patterns", "light_colour": "planckian"}
 
 
 def mesh_files(mesh_dir: str) -> list[str]:
@@ -228,23 +236,30 @@ def sample_scene(cfg: GeneratorConfig, dataset_seed: int, index: int) -> SceneSp
     n_pan = int(round(360.0 / cfg.light_pan_step_deg))
     pan_l = cfg.light_pan_step_deg * int(rng.integers(0, n_pan))
     r_l = float(np.round(rng.uniform(*cfg.light_r_m), 3))
-    cct_k, duv, rgb = colour.sample_light_colour(rng)
+    if cfg.light_colour == "tanner-helland":   # a temperature alone: no Duv
+        cct_k, rgb = colour.sample_cct_step_light(rng)
+        duv = None
+    else:
+        cct_k, duv, rgb = colour.sample_light_colour(rng)
     light = LightSpec(r_m=r_l, pan_deg=float(pan_l), tilt_deg=float(tilt_l),
                       rgb=tuple(float(c) for c in rgb),
                       strength=float(np.round(rng.uniform(*cfg.light_strength), 4)),
-                      cct_k=float(cct_k), duv=float(duv))
+                      cct_k=float(cct_k), duv=None if duv is None else float(duv))
 
     n_walls = int(rng.integers(cfg.n_walls[0], cfg.n_walls[1] + 1))
     prior = albedo.scene_prior(rng, cfg.colour_prior)
-    kind = textures.MOSAIC if cfg.backgrounds == textures.MOSAIC else None
-    room = RoomSpec(
-        n_walls=n_walls,
-        inradius_m=float(np.round(rng.uniform(*cfg.room_inradius_m), 3)),
-        height_m=cfg.wall_height_m,
-        rotation_deg=float(np.round(rng.uniform(0.0, 360.0 / n_walls), 3)),
-        wall_textures=tuple(textures.sample_texture_params(rng, kind, prior) for _ in range(n_walls)),
-        floor_texture=textures.sample_texture_params(rng, kind, prior),
-        texture_res=cfg.texture_res)
+    inradius_m = float(np.round(rng.uniform(*cfg.room_inradius_m), 3))
+    rotation_deg = float(np.round(rng.uniform(0.0, 360.0 / n_walls), 3))
+    if cfg.backgrounds in (textures.LIBRARY, textures.UNSEEN):   # one background: every wall, and the floor
+        wall, floor_texture = textures.sample_background(rng, cfg.backgrounds)
+        wall_textures = (wall,) * n_walls
+    else:
+        kind = textures.MOSAIC if cfg.backgrounds == textures.MOSAIC else None
+        wall_textures = tuple(textures.sample_texture_params(rng, kind, prior) for _ in range(n_walls))
+        floor_texture = textures.sample_texture_params(rng, kind, prior)
+    room = RoomSpec(n_walls=n_walls, inradius_m=inradius_m, height_m=cfg.wall_height_m,
+                    rotation_deg=rotation_deg, wall_textures=wall_textures, floor_texture=floor_texture,
+                    texture_res=cfg.texture_res)
 
     families = cfg.families or shapes.FAMILIES
     user_meshes = mesh_files(cfg.mesh_dir) if cfg.mesh_dir else []
@@ -298,3 +313,32 @@ def _photo_draws(rng: np.random.Generator, cfg: GeneratorConfig, camera: CameraS
         room = dataclasses.replace(room, wall_textures=tuple(dark() for _ in room.wall_textures),
                                    floor_texture=dark())
     return camera, room
+
+
+# --------------------------------------------------------------------------- --preset sid2-paper
+# The paper group's colour protocol (what is known from its later public sets; not stated for
+# SID2), beside relight's default rooms: geometry, camera and light directions as the default.
+SID2_PAPER_PRESET: dict = {
+    "light_colour": "tanner-helland",   # 2000-9900 K in 100 K steps, Tanner-Helland RGB (relight.colour)
+    "backgrounds": textures.LIBRARY,    # one of 250 backgrounds, shared by train and test (textures)
+    "colour_prior": "pastel",           # one pastel colour per object part (albedo)
+    "object_parts": (1, 11),            # parts per object, uniform: median 6, as ShapeNet's
+}
+
+
+def sid2_paper_config(path: str | None = None, **overrides) -> GeneratorConfig:
+    """The settings of ``relight generate --preset sid2-paper``: :data:`SID2_PAPER_PRESET`
+    over the defaults, then the keys of a config file ``path``, then ``overrides`` that
+    are not None (the command's explicit options; ``backgrounds="unseen"`` makes the same
+    preset with backgrounds outside the library)."""
+    return GeneratorConfig.from_file(path, preset="sid2-paper", **overrides)
+
+
+def is_sid2_paper(config: dict) -> bool:
+    """Whether a card's config (a dict) holds the preset's settings."""
+    return all(json.dumps(config.get(k)) == json.dumps(list(v) if isinstance(v, tuple) else v)
+               for k, v in SID2_PAPER_PRESET.items() if k != "backgrounds") \
+        and config.get("backgrounds") in (textures.LIBRARY, textures.UNSEEN)
+
+
+PRESETS["sid2-paper"] = SID2_PAPER_PRESET

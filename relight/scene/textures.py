@@ -20,6 +20,8 @@ Conventions
 """
 from __future__ import annotations
 
+import functools
+import json
 import math
 
 import numpy as np
@@ -29,8 +31,14 @@ from relight.scene.albedo import ALBEDO_MAX, ALBEDO_MIN, texture_colours
 KINDS: tuple[str, ...] = ("checker", "stripes", "patches", "noise", "gradient", "dots", "tiles")
 MOSAIC = "mosaic"   # a grid of cells, each with its own colour from the prior (--backgrounds mosaic)
 ALL_KINDS: tuple[str, ...] = KINDS + (MOSAIC,)
-BACKGROUNDS: tuple[str, ...] = ("patterns", MOSAIC)   # generator setting: KINDS, or mosaics only
+LIBRARY = "library"   # --backgrounds library: one of a closed set of LIBRARY_SIZE backgrounds per scene
+UNSEEN = "unseen"     # --backgrounds unseen: backgrounds drawn like the library's, never one of its colours
+BACKGROUNDS: tuple[str, ...] = ("patterns", MOSAIC, LIBRARY, UNSEEN)   # generator setting
 MOSAIC_CELLS = (4, 16)   # rows and columns of a sampled mosaic (drawn independently)
+LIBRARY_SIZE = 250        # backgrounds of the closed library (the paper group's ~250, shared by train and test)
+LIBRARY_SEED = 30250      # the library's seed: background k is the k-th draw of default_rng(LIBRARY_SEED)
+LIBRARY_KINDS: tuple[str, ...] = tuple(k for k in KINDS if k != "gradient")   # texture-like patterns
+BACKGROUND_KEY = "background"   # texture params: "library:NNN" or "unseen" (make_texture ignores it)
 
 
 # --------------------------------------------------------------------------- params
@@ -112,6 +120,52 @@ def sample_texture_params(rng: np.random.Generator, kind: str | None = None, pri
                  variation=float(rng.uniform(0.0, 0.15)),
                  colors=_colours_of(int(rng.integers(2, 5))))
     return p
+
+
+# --------------------------------------------------------------------------- backgrounds
+def _draw_background(rng: np.random.Generator, tag: str) -> tuple[dict, dict]:
+    """One background: a wall texture and a floor texture, each a pattern of
+    :data:`LIBRARY_KINDS` (2-5 ``hsv`` colours around a hue), tagged ``tag``."""
+    wall = sample_texture_params(rng, str(rng.choice(LIBRARY_KINDS)), "hsv")
+    floor = sample_texture_params(rng, str(rng.choice(LIBRARY_KINDS)), "hsv")
+    return {**wall, BACKGROUND_KEY: tag}, {**floor, BACKGROUND_KEY: tag}
+
+
+@functools.lru_cache(maxsize=1)
+def _library_json() -> tuple[str, ...]:
+    rng = np.random.default_rng(LIBRARY_SEED)
+    return tuple(json.dumps(_draw_background(rng, f"{LIBRARY}:{k:03d}")) for k in range(LIBRARY_SIZE))
+
+
+def background_library() -> list[tuple[dict, dict]]:
+    """The closed library of ``--backgrounds library`` (``--preset sid2-paper``): a list of
+    :data:`LIBRARY_SIZE` ``(wall texture, floor texture)`` params, background ``k`` tagged
+    ``"library:k"`` (three digits), drawn in order from ``default_rng(LIBRARY_SEED)``: the
+    same on every machine and in every run (fresh copies each call)."""
+    return [tuple(json.loads(s)) for s in _library_json()]
+
+
+@functools.lru_cache(maxsize=1)
+def library_colours() -> frozenset:
+    """Every colour (rounded linear RGB triple) of the library's textures."""
+    return frozenset(tuple(c) for s in _library_json() for t in json.loads(s) for c in t["colors"])
+
+
+def sample_background(rng: np.random.Generator, mode: str) -> tuple[dict, dict]:
+    """The ``(wall texture, floor texture)`` of one scene: ``library``, one of the
+    library's backgrounds, uniformly (one integer draw); ``unseen``, a new background drawn
+    as the library's are, redrawn while any of its colours is one of the library's (so an
+    unseen background shares no surface colour with the library)."""
+    if mode == LIBRARY:
+        return background_library()[int(rng.integers(0, LIBRARY_SIZE))]
+    if mode == UNSEEN:
+        known = library_colours()
+        for _ in range(1000):
+            wall, floor = _draw_background(rng, UNSEEN)
+            if not any(tuple(c) in known for t in (wall, floor) for c in t["colors"]):
+                return wall, floor
+        raise RuntimeError("no background outside the library in 1000 draws")  # pragma: no cover
+    raise ValueError(f"unknown background mode {mode!r}; expected {LIBRARY!r} or {UNSEEN!r}")
 
 
 # --------------------------------------------------------------------------- patterns
