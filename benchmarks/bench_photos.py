@@ -6,7 +6,9 @@ Scores one or more models (default: the shipped one) on
   12 lights (the network, beside the constant guess; the sphere procedure's own figures are
   ``benchmarks/bench_probe.py``'s);
 * a Cycles dev set: default rooms rendered by Blender Cycles from relight scene files
-  (``benchmarks/cycles_twin.py``), beside the same scenes rendered by Mitsuba;
+  (``benchmarks/cycles_twin.py``), beside the same scenes rendered by Mitsuba, its PNGs made
+  two ways: relight's sRGB encoding of the linear render, and Blender's default view
+  transform (AgX), what a Blender user's PNG looks like;
 all in the camera frame (``relight.net.photos``), with each model's own camera tilt where
 it has a camera head. Also printed: the constant "light at the camera" guess, the
 reference any estimator must beat on psm (its lights are all within 40 degrees of the view).
@@ -53,8 +55,9 @@ def _constant_guess(truth: np.ndarray) -> dict:
             "cone90_coverage": float("nan"), "ood_share": 0.0}
 
 
-def ensure_devset(root: str, n: int) -> tuple[str | None, str | None]:
-    """The Mitsuba dev set and its Cycles twin under ``root`` (made when missing and possible)."""
+def ensure_devset(root: str, n: int) -> tuple[str | None, str | None, str | None]:
+    """The Mitsuba dev set, its Cycles twin and the Cycles twin through Blender's default AgX
+    view transform, under ``root`` (made when missing and possible)."""
     from relight.blender import blender_python
     mitsuba, cycles = os.path.join(root, "devset-mitsuba"), os.path.join(root, "devset-cycles")
     relight_cli = [sys.executable, "-m", "relight"]
@@ -65,14 +68,20 @@ def ensure_devset(root: str, n: int) -> tuple[str | None, str | None]:
                                       "--quiet"], check=True)
     if blender_python() is None:
         print("Cycles dev set: skipped (no Blender environment; run scripts/setup_blender.sh)")
-        return mitsuba, None
+        return mitsuba, None, None
     have = sum(1 for _ in open(os.path.join(cycles, "manifest.jsonl"))) if \
         os.path.exists(os.path.join(cycles, "manifest.jsonl")) else 0
     if have < n:
         print(f"making {cycles}: benchmarks/cycles_twin.py {mitsuba} --limit {n} (resumable)")
         subprocess.run([sys.executable, os.path.join(REPO, "benchmarks", "cycles_twin.py"), mitsuba,
                         "--out", cycles, "--limit", str(n)], check=True)
-    return mitsuba, cycles
+    agx = os.path.join(root, "devset-cycles-agx")
+    if not os.path.exists(os.path.join(agx, "manifest.jsonl")) or \
+            sum(1 for _ in open(os.path.join(agx, "manifest.jsonl"))) < n:
+        print(f"making {agx}: benchmarks/cycles_twin.py {cycles} --view-transform AgX")
+        subprocess.run([sys.executable, os.path.join(REPO, "benchmarks", "cycles_twin.py"), cycles,
+                        "--out", agx, "--view-transform", "AgX"], check=True)
+    return mitsuba, cycles, agx
 
 
 def main(argv=None) -> int:
@@ -108,10 +117,11 @@ def main(argv=None) -> int:
         else:
             print("psm_spheres: skipped (shared/data/psm_spheres not present)")
         if not args.no_devset:
-            mitsuba, cycles = ensure_devset(args.devset, args.n)
+            mitsuba, cycles, agx = ensure_devset(args.devset, args.n)
             sets.append((f"dev set, Mitsuba ({args.n} default rooms)", "data", mitsuba, None))
             if cycles:
                 sets.append((f"dev set, Cycles (the same {args.n} scenes)", "data", cycles, None))
+                sets.append((f"dev set, Cycles + Blender's AgX view (the same {args.n})", "data", agx, None))
         results = {}
         head = f"{'set / model':<44}  {'n':>4}  {'direction (camera frame) med / mean':>15}"
         for label, kind, folder, names in sets:

@@ -11,6 +11,14 @@ Usage (resumable: re-run the same command; ids already in the twin's manifest ar
     .venv/bin/python benchmarks/cycles_twin.py ~/relight-data/photo/devset-mitsuba \
         --out ~/relight-data/photo/devset-cycles --spp 64
 
+``--view-transform AgX SRC_TWIN`` makes a second twin whose PNGs go through Blender's own
+colour management instead (the view transform a Blender user gets by default, AgX since
+Blender 4.0, sRGB display, 8-bit PNG via ``Image.save_render``); its EXRs are the source
+twin's, so no scene is rendered again::
+
+    .venv/bin/python benchmarks/cycles_twin.py ~/relight-data/photo/devset-cycles \
+        --out ~/relight-data/photo/devset-cycles-agx --view-transform AgX
+
 Needs the Blender environment (``bash scripts/setup_blender.sh``); without it, one line and
 exit 2.
 """
@@ -65,18 +73,83 @@ def cycles_twin(src: str, out: str, spp: int = DEFAULT_SPP, limit: int | None = 
     return n
 
 
+VIEW_SCRIPT = """
+import bpy, json, sys
+jobs = json.load(open(sys.argv[-1]))
+scene = bpy.context.scene
+scene.view_settings.view_transform = jobs["view"]
+scene.view_settings.look = "None"
+scene.display_settings.display_device = "sRGB"
+scene.render.image_settings.file_format = "PNG"
+scene.render.image_settings.color_depth = "8"
+for src, dst in jobs["pairs"]:
+    img = bpy.data.images.load(src)
+    img.save_render(dst, scene=scene)
+    bpy.data.images.remove(img)
+"""
+
+
+def view_transform_twin(src: str, out: str, view: str = "AgX", progress: bool = True) -> int:
+    """A twin of dataset ``src`` whose PNGs are its EXRs through Blender's view transform
+    ``view`` (sRGB display, 8-bit); records, scenes and EXRs are copied. Returns the count."""
+    import subprocess
+    import tempfile
+
+    from relight import blender
+    from relight.dataset import MANIFEST, read_manifest
+    from relight.errors import BlenderError
+    from relight.fileio import check_outputs, write_json
+    python = blender.blender_python()
+    if python is None:
+        raise BlenderError(blender.INSTALL_HINT)
+    records = read_manifest(src)
+    check_outputs([out], [src], replaces_folder=True)
+    for sub in ("images", "exr", "scenes"):
+        os.makedirs(os.path.join(out, sub), exist_ok=True)
+    done = {r["id"] for r in read_manifest(out)} if os.path.exists(os.path.join(out, MANIFEST)) else set()
+    todo = [r for r in records if r["id"] not in done]
+    if not os.path.exists(os.path.join(out, "dataset.json")):
+        card = json.load(open(os.path.join(src, "dataset.json"))) if os.path.exists(os.path.join(src, "dataset.json")) else {}
+        card["view_transform"] = {"blender": view, "display": "sRGB", "twin_of": os.path.abspath(src)}
+        write_json(os.path.join(out, "dataset.json"), card)
+    with tempfile.TemporaryDirectory(prefix="relight-view-") as tmp:
+        pairs = [(os.path.abspath(os.path.join(src, r["exr"])), os.path.join(tmp, f"{r['id']}.png")) for r in todo]
+        with open(os.path.join(tmp, "jobs.json"), "w") as f:
+            json.dump({"view": view, "pairs": pairs}, f)
+        with open(os.path.join(tmp, "view.py"), "w") as f:
+            f.write(VIEW_SCRIPT)
+        run = subprocess.run([python, os.path.join(tmp, "view.py"), os.path.join(tmp, "jobs.json")],
+                             capture_output=True, text=True)
+        if run.returncode != 0:
+            raise BlenderError(f"Blender's view transform failed: {(run.stderr or run.stdout).strip().splitlines()[-1:]}")
+        for r, (_, png) in zip(todo, pairs):
+            shutil.copyfile(os.path.join(src, r["scene"]), os.path.join(out, r["scene"]))
+            shutil.copyfile(os.path.join(src, r["exr"]), os.path.join(out, r["exr"]))
+            shutil.move(png, os.path.join(out, r["image"]))
+            with open(os.path.join(out, MANIFEST), "a") as f:
+                f.write(json.dumps(r) + "\n")
+    return len(todo)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("src", help="source dataset folder (relight generate output)")
     ap.add_argument("--out", required=True, help="twin dataset folder to write (resumable)")
     ap.add_argument("--spp", type=int, default=DEFAULT_SPP, help=f"Cycles samples per pixel (default {DEFAULT_SPP})")
     ap.add_argument("--limit", type=int, default=None, help="only the first N records")
+    ap.add_argument("--view-transform", default=None, metavar="VIEW",
+                    help="instead of rendering: copy the twin SRC with its PNGs made by Blender's view "
+                         "transform VIEW (e.g. AgX, Filmic, Standard) from its EXRs")
     args = ap.parse_args(argv)
     from relight.errors import RelightError
     if args.spp < 1 or (args.limit is not None and args.limit < 1):
         sys.stderr.write("cycles_twin: error: --spp and --limit must be positive integers\n")
         return 2
     try:
+        if args.view_transform:
+            n = view_transform_twin(args.src, args.out, args.view_transform)
+            print(f"{args.out}: {n} images through Blender's {args.view_transform} view transform")
+            return 0
         n = cycles_twin(args.src, args.out, args.spp, args.limit)
     except RelightError as exc:
         sys.stderr.write(f"cycles_twin: error: {str(exc).splitlines()[0]}\n")
