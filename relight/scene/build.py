@@ -272,7 +272,7 @@ class SceneTemplate:
     def render_under_envmap(self, envmap, to_world, spp: int, seed: int) -> np.ndarray:
         """Light the scene by an equirectangular map instead (a template made with
         ``envmap_shape``): ``envmap`` ``(H, W, 3)`` linear radiance in Mitsuba's
-        ``envmap`` layout, ``to_world`` its 4x4 (:func:`relight.frames.mitsuba_envmap_to_world`);
+        ``envmap`` layout (:func:`relight.verify.envmap.mitsuba_layout`), ``to_world`` its 4x4 (:func:`relight.frames.mitsuba_envmap_to_world`);
         then render as :meth:`render`."""
         mi = backend.mitsuba()
         envmap = np.asarray(envmap, np.float32)

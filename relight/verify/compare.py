@@ -224,11 +224,12 @@ def compare_one(builder, task: Task, noise_seed_offset: int = NOISE_SEED_OFFSET)
         shadow_b = shadows.envmap_shadow(template.scene, surface, task.envmap, rotation, occluders=objects)
         env_template = builder.template_for(spec, envmap_shape=task.envmap.shape[:2])
         to_world = frames.mitsuba_envmap_to_world(task.envmap_frame, cam.tilt_deg, cam.pan_deg)
-        rerender = env_template.render_under_envmap(task.envmap, to_world, spp, seed)
+        from relight.verify.envmap import light_envmap, mitsuba_layout
+        rerender = env_template.render_under_envmap(mitsuba_layout(task.envmap), to_world, spp, seed)
         # the map floor: the true light as a map of the same size (what any map can reach here)
-        from relight.verify.envmap import light_envmap
         true_map = light_envmap(spec, task.envmap.shape[1], task.envmap_frame)
-        map_floor = light_scores(original, env_template.render_under_envmap(true_map, to_world, spp, seed))
+        map_floor = light_scores(original, env_template.render_under_envmap(mitsuba_layout(true_map), to_world,
+                                                                            spp, seed))
         map_floor["shadow_iou"] = shadows.soft_iou(shadow_a, shadows.envmap_shadow(
             template.scene, surface, true_map, rotation, occluders=objects))
     render_s = time.perf_counter() - t0

@@ -103,6 +103,20 @@ def write_envmap(path: str | os.PathLike, image: np.ndarray, inputs=()) -> None:
     write_exr(path, check_envmap(image, os.fspath(path)), inputs)
 
 
+def mitsuba_layout(image: np.ndarray) -> np.ndarray:
+    """The map resampled to the rows Mitsuba's ``envmap`` plugin reads: it puts row j at
+    ``v = j / (H - 1)`` (the first and last rows on the poles; columns at ``(i + 0.5) / W``
+    like ours), where our rows sit at ``v = (j + 0.5) / H``. Linear in v, at most half a
+    row of shift; same shape."""
+    img = np.asarray(image, np.float32)
+    h = img.shape[0]
+    y = np.arange(h) / (h - 1) * h - 0.5          # Mitsuba's rows in our row coordinates
+    i0 = np.clip(np.floor(y).astype(int), 0, h - 1)
+    i1 = np.clip(i0 + 1, 0, h - 1)
+    f = np.clip(y - i0, 0.0, 1.0)[:, None, None].astype(np.float32)
+    return np.ascontiguousarray((1 - f) * img[i0] + f * img[i1])
+
+
 # --- analysis -------------------------------------------------------------------------
 
 @dataclass(frozen=True)
