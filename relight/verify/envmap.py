@@ -213,11 +213,15 @@ def disc_envmap(direction_map, irradiance_rgb_wm2, width: int = DEFAULT_WIDTH,
     radius_deg = disc_radius_deg(width) if radius_deg is None else float(radius_deg)
     cos_r = math.cos(math.radians(radius_deg))
     s = DISC_SUPERSAMPLE
+    # only pixels whose centre is within the disc's radius + a pixel's diagonal can be covered
+    near_cos = math.cos(min(math.pi, math.radians(radius_deg + 1.5 * 360.0 / width)))
+    rows, cols = np.nonzero(_pixel_directions(h, width) @ d >= near_cos)
     offsets = (np.arange(s) + 0.5) / s
-    u = (np.arange(width)[:, None] + offsets[None, :]).reshape(-1) / width
-    v = (np.arange(h)[:, None] + offsets[None, :]).reshape(-1) / h
-    sub = frames.equirect_to_direction(u[None, :], v[:, None])        # (h s, w s, 3)
-    coverage = (sub @ d >= cos_r).reshape(h, s, width, s).mean(axis=(1, 3))
+    u = (cols[:, None, None] + offsets[None, None, :]) / width          # (n, 1, s)
+    v = (rows[:, None, None] + offsets[None, :, None]) / h              # (n, s, 1)
+    sub = frames.equirect_to_direction(u, v)                            # (n, s, s, 3)
+    coverage = np.zeros((h, width))
+    coverage[rows, cols] = (sub @ d >= cos_r).mean(axis=(1, 2))
     target = np.asarray(irradiance_rgb_wm2, np.float64)
     img = coverage[..., None] * np.ones(3)
     e = irradiance_rgb(img, d)[0]

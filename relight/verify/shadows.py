@@ -66,6 +66,55 @@ def object_cylinders(spec) -> np.ndarray:
                      for o in spec.objects], np.float64).reshape(-1, 3)
 
 
+def occluded_fraction(scene, points, normals, valid, directions, weights, positions=None,
+                      occluders=None) -> np.ndarray:
+    """``(P,)`` occluded fraction s(x) (module docstring) for lights along unit
+    ``directions`` (K, 3) with ``weights`` (K,), or toward point ``positions`` (K, 3);
+    ``occluders``: :func:`object_cylinders` (None: every surface occludes). All K x P
+    shadow rays are traced in one Dr.Jit launch; :func:`occluded_fraction_reference` is
+    the same in plain numpy."""
+    mi = backend.mitsuba()
+    dr = backend.drjit()
+    n_p, n_k = len(points), len(weights)
+    vec = lambda cls, a: cls(*[np.ascontiguousarray(a[:, i], np.float32) for i in range(3)])
+    idx = dr.arange(mi.UInt32, n_k * n_p)
+    k = idx // n_p
+    p = idx - k * n_p
+    x = dr.gather(mi.Point3f, vec(mi.Point3f, np.asarray(points)), p)
+    n = dr.gather(mi.Vector3f, vec(mi.Vector3f, np.asarray(normals)), p)
+    live = dr.gather(mi.Bool, mi.Bool(np.asarray(valid, bool)), p)
+    w = dr.gather(mi.Float, mi.Float(np.asarray(weights, np.float32)), k)
+    if positions is not None:
+        to = dr.gather(mi.Point3f, vec(mi.Point3f, np.asarray(positions, np.float64)), k) - x
+        dist = dr.norm(to)
+        d = to / dr.maximum(dist, 1e-12)
+        maxt = dist * (1.0 - 1e-6)
+    else:
+        d = dr.gather(mi.Vector3f, vec(mi.Vector3f, np.asarray(directions, np.float64)), k)
+        maxt = dr.full(mi.Float, dr.largest(mi.Float), n_k * n_p)
+    cos = dr.maximum(dr.dot(n, d), 0.0)
+    live = live & (cos > 0)
+    scale = 1.0 + dr.maximum(dr.maximum(dr.abs(x.x), dr.abs(x.y)), dr.abs(x.z))
+    ray = mi.Ray3f(x + n * (RAY_EPSILON_M * scale), d)
+    ray.maxt = maxt
+    if occluders is None:
+        blocked = scene.ray_test(ray, live)
+    else:
+        si = scene.ray_intersect(ray, live)
+        inside = dr.full(mi.Bool, False, n_k * n_p)
+        for cx, cy, r in np.asarray(occluders, np.float64):   # opaque: no kernel per scene
+            cx, cy, r2 = (dr.opaque(mi.Float, float(v)) for v in (cx, cy, r * r))
+            inside |= dr.square(si.p.x - cx) + dr.square(si.p.y - cy) <= r2
+        blocked = si.is_valid() & inside
+    lit = dr.select(live, w * cos, 0.0)
+    den = dr.zeros(mi.Float, n_p)
+    num = dr.zeros(mi.Float, n_p)
+    dr.scatter_reduce(dr.ReduceOp.Add, den, lit, p)
+    dr.scatter_reduce(dr.ReduceOp.Add, num, dr.select(blocked, 0.0, lit), p)
+    den, num = np.array(den, np.float64), np.array(num, np.float64)
+    return np.where(den > 0, 1.0 - num / np.where(den > 0, den, 1.0), 0.0)
+
+
 def _unblocked(scene, origins: np.ndarray, directions: np.ndarray, maxt: np.ndarray | None,
                occluders: np.ndarray | None) -> np.ndarray:
     """True where the ray reaches its end (or infinity) without hitting an occluder
@@ -87,11 +136,10 @@ def _unblocked(scene, origins: np.ndarray, directions: np.ndarray, maxt: np.ndar
     return ~(hit & inside)
 
 
-def occluded_fraction(scene, points, normals, valid, directions, weights, positions=None,
-                      occluders=None) -> np.ndarray:
-    """``(P,)`` occluded fraction s(x) (module docstring) for lights along unit
-    ``directions`` (K, 3) with ``weights`` (K,), or toward point ``positions`` (K, 3);
-    ``occluders``: :func:`object_cylinders` (None: every surface occludes)."""
+def occluded_fraction_reference(scene, points, normals, valid, directions, weights, positions=None,
+                                occluders=None) -> np.ndarray:
+    """:func:`occluded_fraction` in plain numpy, one shadow ray per (direction, pixel):
+    the readable version, kept to test the fast one."""
     k_n = len(weights)
     if positions is not None:
         to = np.asarray(positions, np.float64)[:, None, :] - points[None, :, :]      # (K, P, 3)
