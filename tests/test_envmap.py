@@ -24,6 +24,9 @@ NOISE_FACTOR = 1.5              # the issue's target: map render vs point render
 ROUND_TRIP_DEG = 0.5            # the issue's target: direction error of the true light's map
 N_IMAGES, RES, SPP = 3, 32, 4
 SIDE_RATIO = 1.3                # lit half / unlit half of the sphere window (bounce light fills the rest)
+SHADOW_TOL = 1e-5               # float32 sums of 64 weights
+MIN_SHADOW_PX = 5               # the sphere's cast shadow is in view
+DARK_FRACTION = 0.3             # shadowed floor / lit floor luminance (indirect light only)
 INTERPOLATION_TOL = 0.01        # bilinear error of f(d) = 2 + a.d on a 128 x 64 map (|a| ~ 1)
 
 
@@ -157,6 +160,33 @@ def test_disc_on_the_right_lights_the_right_side(mi):
         sides[u] = (sphere[:, 6:].sum(), sphere[:, :6].sum())   # (right half, left half)
     assert sides[0.75][0] > SIDE_RATIO * sides[0.75][1]
     assert sides[0.25][1] > SIDE_RATIO * sides[0.25][0]
+
+
+# --- the shadow term ------------------------------------------------------------------------
+
+def test_shadow_term_fast_equals_reference_and_the_render(mi):
+    """The one-launch occluded fraction equals the plain per-ray version, and the pixels it
+    calls shadowed under a point light are the dark ones of the render."""
+    from relight.scene.build import SceneBuilder
+    from relight.verify import shadows as S
+    spec = sphere_scene(pan_rel_deg=60.0, tilt_deg=45.0, camera_tilt_deg=30.0, res=32, spp=16)
+    t = SceneBuilder().template_for(spec)
+    surface = S.surface_points(t.scene, 32)
+    objects = S.object_cylinders(spec)
+    m = E.blur_envmap(E.light_envmap(spec, 64), 15.0)
+    dirs, w = S.envmap_directions(m, frames.envmap_rotation("camera", spec.camera.tilt_deg))
+    for kw in (dict(directions=dirs, weights=w), dict(directions=None, weights=np.ones(1),
+                                                     positions=spec.light.position_m[None])):
+        for occ in (None, objects):
+            fast = S.occluded_fraction(t.scene, *surface, occluders=occ, **kw)
+            ref = S.occluded_fraction_reference(t.scene, *surface, occluders=occ, **kw)
+            np.testing.assert_allclose(fast, ref, atol=SHADOW_TOL)
+    s = S.point_shadow(t.scene, surface, spec.light.position_m, objects).reshape(32, 32)
+    assert set(np.unique(s)) <= {0.0, 1.0} and s.sum() >= MIN_SHADOW_PX   # a point light: hard
+    lum = t.render(16, 1).mean(-1)
+    floor = surface[1].reshape(32, 32, 3)[..., 2] > 0.99                # floor pixels (normal up)
+    assert lum[(s == 1) & floor].mean() < DARK_FRACTION * lum[(s == 0) & floor].mean()
+    assert S.soft_iou(s, s) == 1.0 and S.soft_iou(s, 0 * s) == 0.0
 
 
 # --- the dominant light -------------------------------------------------------------------
@@ -316,7 +346,7 @@ def test_compare_on_maps(dataset, records, tmp_path):
     deg direction error."""
     from relight.verify.compare import compare_predictions
     files = _map_variants(dataset, records, tmp_path)
-    got = {k: compare_predictions(f, progress=False) for k, f in files.items()}
+    got = {k: compare_predictions(f, progress=False, map_floor=True) for k, f in files.items()}
     for k, c in got.items():
         assert len(c.items) == N_IMAGES and not c.bad, k
         assert all(it.kind == "envmap" for it in c.items)
@@ -340,7 +370,8 @@ def test_report_shows_both_kinds(dataset, records, tmp_path, capfd):
     write_exr(tmp_path / "maps" / "m.exr", E.light_envmap(load_spec(dataset, r0), 64))
     entries[0] = {"id": r0["id"], "envmap": "maps/m.exr"}
     write_predictions(tmp_path / "mixed.json", entries, dataset=dataset)
-    code, _, err = _cli(["compare", tmp_path / "mixed.json", "--out", tmp_path / "rep", "--quiet"], capfd)
+    code, _, err = _cli(["compare", tmp_path / "mixed.json", "--out", tmp_path / "rep", "--quiet",
+                         "--map-floor"], capfd)
     assert code == 0, err
     tables = (tmp_path / "rep" / "tables.md").read_text()
     assert "| point light | 2 |" in tables and "| environment map | 1 |" in tables
@@ -353,6 +384,8 @@ def test_report_shows_both_kinds(dataset, records, tmp_path, capfd):
     assert sorted(kinds) == ["envmap", "point", "point"]
     summary = json.loads((tmp_path / "rep" / "summary.json").read_text())
     assert set(summary["by_kind"]) == {"point", "envmap"}
+    assert summary["by_kind"]["envmap"]["map_floor_rel_rmse"]["mean"] is not None
+    assert summary["by_kind"]["point"]["map_floor_rel_rmse"]["mean"] is None
 
 
 # --- bad maps: one line, exit 2, nothing written -------------------------------------------

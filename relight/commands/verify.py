@@ -24,6 +24,10 @@ def add_commands(sub) -> None:
     c.add_argument("--skip-bad", action="store_true", help="skip bad entries and list them in the report")
     c.add_argument("--limit", type=at.limit, default=None, help="compare only the first N predictions")
     c.add_argument("--max-columns", type=at.columns, default=8, help="columns of figure3 (default 8)")
+    c.add_argument("--map-floor", action="store_true",
+                   help="environment-map entries: also render the true light made a map (the 'map "
+                        "floor': the least error any map reaches on that scene, since a map is "
+                        "infinitely far and the scene's light is not); one more render per map entry")
     c.add_argument("--quiet", action="store_true", help="no progress bar")
     at.add_scheduler_option(c, "the re-renders")
     c.set_defaults(func=cmd_compare)
@@ -151,7 +155,7 @@ def cmd_compare(args) -> int:
     check_out(out)
     comparison = compare_predictions(args.predictions, data_dir=args.data, limit=args.limit,
                                      skip_bad=args.skip_bad, progress=not args.quiet,
-                                     scheduler=args.scheduler)
+                                     scheduler=args.scheduler, map_floor=args.map_floor)
     check_outputs([out], [comparison.dataset_dir], replaces_folder=True)
     if not comparison.items:
         first = f" (first: {comparison.bad[0][0]}: {comparison.bad[0][1]})" if comparison.bad else ""
@@ -160,9 +164,11 @@ def cmd_compare(args) -> int:
     settings = {"command": "compare", "predictions": os.path.abspath(args.predictions),
                 "data": comparison.dataset_dir, "out": out, "skip_bad": bool(args.skip_bad),
                 "limit": args.limit, "max_columns": args.max_columns,
+                "map_floor": bool(args.map_floor),
                 "argv": ["relight", "compare", args.predictions] + (["--data", args.data] if args.data else [])
                 + ["--out", args.out] + (["--skip-bad"] if args.skip_bad else [])
-                + (["--limit", str(args.limit)] if args.limit else [])}
+                + (["--limit", str(args.limit)] if args.limit else [])
+                + (["--map-floor"] if args.map_floor else [])}
     summary = write_report(comparison, out, settings, max_columns=args.max_columns,
                            progress=not args.quiet)
     d = summary["light_errors_deg"]

@@ -27,8 +27,8 @@ its light errors are those of the map's dominant light, so both kinds share Tabl
 A map's exposure is its estimator's own, so its (b) is shown and measured after the
 fitted scale (the ``scale`` column says by how much). Mitsuba's map is infinitely far,
 the dataset's point light 20-50 m away inside the room, so even the true light made a
-map cannot give (a) back: each map entry also renders that map (the **map floor**,
-``map_floor_*`` columns), the least error any map reaches on that scene. An entry with
+map cannot give (a) back: with ``map_floor`` each map entry also renders that map (the
+**map floor**, ``map_floor_*`` columns), the least error any map reaches on that scene. An entry with
 a map and a point light is verified as its map.
 
 Loaded Mitsuba scenes are reused through one :class:`relight.scene.build.SceneBuilder`
@@ -197,8 +197,10 @@ def prepare(dataset_dir: str, record: dict, prediction: Prediction) -> Task:
     return Task(prediction, spec, exr_path, gt, Light(pan, tilt, tuple(float(c) for c in rgb)))
 
 
-def compare_one(builder, task: Task, noise_seed_offset: int = NOISE_SEED_OFFSET) -> tuple[ImageComparison, float]:
-    """Render and measure one prepared task; returns (result, render seconds)."""
+def compare_one(builder, task: Task, noise_seed_offset: int = NOISE_SEED_OFFSET,
+                map_floor: bool = False) -> tuple[ImageComparison, float]:
+    """Render and measure one prepared task; returns (result, render seconds). With
+    ``map_floor`` a map entry also renders the true light made a map (one more render)."""
     spec, pred, gt = task.spec, task.pred, task.gt
     original = read_exr(task.exr_path)
     res, spp, seed = spec.render.res, spec.render.spp, spec.render.seed
@@ -214,7 +216,7 @@ def compare_one(builder, task: Task, noise_seed_offset: int = NOISE_SEED_OFFSET)
     surface = shadows.surface_points(template.scene, res)
     objects = shadows.object_cylinders(spec)
     shadow_a = shadows.point_shadow(template.scene, surface, spec.light.position_m, objects)
-    map_floor = {}
+    floor = {}
     if task.envmap is None:
         pred_spec = spec.with_light(pred.pan_rel_deg, pred.tilt_deg, pred.rgb)
         rerender = template.render_under(pred_spec.light.position_m, pred_spec.light.intensity, spp, seed)
@@ -226,12 +228,12 @@ def compare_one(builder, task: Task, noise_seed_offset: int = NOISE_SEED_OFFSET)
         to_world = frames.mitsuba_envmap_to_world(task.envmap_frame, cam.tilt_deg, cam.pan_deg)
         from relight.verify.envmap import light_envmap, mitsuba_layout
         rerender = env_template.render_under_envmap(mitsuba_layout(task.envmap), to_world, spp, seed)
-        # the map floor: the true light as a map of the same size (what any map can reach here)
-        true_map = light_envmap(spec, task.envmap.shape[1], task.envmap_frame)
-        map_floor = light_scores(original, env_template.render_under_envmap(mitsuba_layout(true_map), to_world,
+        if map_floor:   # the true light as a map of the same size (what any map can reach here)
+            true_map = light_envmap(spec, task.envmap.shape[1], task.envmap_frame)
+            floor = light_scores(original, env_template.render_under_envmap(mitsuba_layout(true_map), to_world,
                                                                             spp, seed))
-        map_floor["shadow_iou"] = shadows.soft_iou(shadow_a, shadows.envmap_shadow(
-            template.scene, surface, true_map, rotation, occluders=objects))
+            floor["shadow_iou"] = shadows.soft_iou(shadow_a, shadows.envmap_shadow(
+                template.scene, surface, true_map, rotation, occluders=objects))
     render_s = time.perf_counter() - t0
     scores = light_scores(original, rerender)
     if task.envmap is not None:   # a map's exposure is its own: (b) after the fitted scale
@@ -246,7 +248,7 @@ def compare_one(builder, task: Task, noise_seed_offset: int = NOISE_SEED_OFFSET)
         original=original, rerender=rerender, res=res, spp=spp, seed=seed,
         kind="point" if task.envmap is None else "envmap", scores=scores,
         noise_scores=light_scores(original, noise), shadow_iou=shadows.soft_iou(shadow_a, shadow_b),
-        envmap=task.prediction.envmap, map_floor=map_floor)
+        envmap=task.prediction.envmap, map_floor=floor)
     return item, render_s
 
 
@@ -256,7 +258,7 @@ BAD_INPUT = (SceneFileError, DatasetError, ImageError, PredictionsError)
 def compare_predictions(predictions_path: str | os.PathLike, data_dir: str | None = None,
                         limit: int | None = None, skip_bad: bool = False, progress: bool = True,
                         builder=None, noise_seed_offset: int = NOISE_SEED_OFFSET,
-                        scheduler=None) -> Comparison:
+                        scheduler=None, map_floor: bool = False) -> Comparison:
     """Re-render every prediction of a file and measure its errors.
 
     Every entry is checked first (ids, scene files, EXR paths), so a bad one fails
@@ -272,6 +274,8 @@ def compare_predictions(predictions_path: str | os.PathLike, data_dir: str | Non
         scheduler: render on Dask (``local:N`` or an address, :mod:`relight.engine`):
             shards of images render in worker processes, the results come back here;
             the same Comparison as without it.
+        map_floor: for map entries, also render the true light made a map (the map
+            floor columns; one more render per map entry).
     Raises:
         CompareError / PredictionsError naming the entry (unless ``skip_bad``).
     """
@@ -309,10 +313,10 @@ def compare_predictions(predictions_path: str | os.PathLike, data_dir: str | Non
 
     items, render_s, t0 = [], 0.0, time.perf_counter()
     if scheduler is not None:
-        outcomes = _compare_on_engine(scheduler, tasks, noise_seed_offset, progress)
+        outcomes = _compare_on_engine(scheduler, tasks, noise_seed_offset, progress, map_floor)
     else:
         backend.init()
-        outcomes = _compare_here(builder or SceneBuilder(), tasks, noise_seed_offset, progress)
+        outcomes = _compare_here(builder or SceneBuilder(), tasks, noise_seed_offset, progress, map_floor)
     for task, (item, seconds, reason) in zip(tasks, outcomes):
         if reason is not None:
             fail(task.prediction, reason)
@@ -323,18 +327,18 @@ def compare_predictions(predictions_path: str | os.PathLike, data_dir: str | Non
                       items=items, bad=bad, seconds=time.perf_counter() - t0, render_seconds=render_s)
 
 
-def _outcome(builder, task: Task, noise_seed_offset: int):
+def _outcome(builder, task: Task, noise_seed_offset: int, map_floor: bool = False):
     """``(item, render seconds, None)``, or ``(None, 0, one-line reason)`` for a bad input."""
     try:
-        return (*compare_one(builder, task, noise_seed_offset), None)
+        return (*compare_one(builder, task, noise_seed_offset, map_floor), None)
     except BAD_INPUT as exc:
         return None, 0.0, str(exc).splitlines()[0] if str(exc) else type(exc).__name__
 
 
-def _compare_here(builder, tasks: list[Task], noise_seed_offset: int, progress: bool):
+def _compare_here(builder, tasks: list[Task], noise_seed_offset: int, progress: bool, map_floor: bool = False):
     from tqdm import tqdm
     for task in tqdm(tasks, desc="compare", unit="img", disable=None if progress else True):
-        yield _outcome(builder, task, noise_seed_offset)
+        yield _outcome(builder, task, noise_seed_offset, map_floor)
 
 
 def _compare_shard(context, shard: list[int]) -> list:
@@ -342,15 +346,16 @@ def _compare_shard(context, shard: list[int]) -> list:
     the context's task list), with one scene builder per process."""
     from relight import engine
     from relight.scene.build import SceneBuilder
-    tasks, noise_seed_offset = context
+    tasks, noise_seed_offset, map_floor = context
     builder = engine.worker_cache("scene_builder", SceneBuilder)
-    return [_outcome(builder, tasks[k], noise_seed_offset) for k in shard]
+    return [_outcome(builder, tasks[k], noise_seed_offset, map_floor) for k in shard]
 
 
-def _compare_on_engine(scheduler, tasks: list[Task], noise_seed_offset: int, progress: bool) -> list:
+def _compare_on_engine(scheduler, tasks: list[Task], noise_seed_offset: int, progress: bool,
+                       map_floor: bool = False) -> list:
     """The outcomes of ``tasks`` rendered on Dask, gathered here in task order."""
     from relight import engine
-    return engine.map_ordered(scheduler, _compare_shard, (tasks, noise_seed_offset), len(tasks),
+    return engine.map_ordered(scheduler, _compare_shard, (tasks, noise_seed_offset, map_floor), len(tasks),
                               "compare", progress)
 
 
