@@ -122,7 +122,8 @@ class ImageComparison:
         r.update({m: self.scores.get(m, float("nan")) for m in LIGHT_SCORES})
         r.update({f"noise_{m}": self.noise_scores.get(m, float("nan")) for m in LIGHT_SCORES})
         r["shadow_iou"] = self.shadow_iou
-        r.update({f"map_floor_{m}": self.map_floor.get(m, float("nan")) for m in LIGHT_SCORES + ("shadow_iou",)})
+        # empty where there is no map floor (point lights; maps without --map-floor)
+        r.update({f"map_floor_{m}": self.map_floor.get(m, "") for m in LIGHT_SCORES + ("shadow_iou",)})
         r.update(res=self.res, spp=self.spp, seed=self.seed)
         return r
 
