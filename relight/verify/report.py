@@ -267,8 +267,8 @@ def _index_html(summary: dict, tables_md: str, rows: list[dict], panel_names: li
         out += [f"<li><b>{esc(b['entry'])}</b>: {esc(b['reason'])}</li>" for b in summary["bad"]]
         out.append("</ul>")
     if rows:
-        keys = ["id", "kind", "direction_error_deg", "colour_error_deg", "pan_error_deg", "tilt_error_deg",
-                "rmse", "noise_rmse", "ssim", "noise_ssim", "rel_rmse", "rgb_angle_deg", "shadow_iou"]
+        keys = ["id", "direction_error_deg", "colour_error_deg", "pan_error_deg", "tilt_error_deg",
+                "rmse", "noise_rmse", "ssim", "noise_ssim", "rel_rmse", "rgb_angle_deg", "shadow_iou", "kind"]
         out.append("<h2>Per image</h2><p><a href='metrics.csv'>metrics.csv</a>; click a column "
                    "header to sort.</p><table class='sortable' id='per-image'><thead><tr>"
                    + "".join(f"<th>{k}</th>" for k in keys) + "</tr></thead><tbody>")
