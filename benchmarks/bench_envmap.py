@@ -94,7 +94,7 @@ def variant_files(dataset: str, records: list, folder: str, width: int) -> dict[
             if kind == "blur":
                 m = E.blur_envmap(m, 30.0)
             elif kind == "turn":
-                m = E.rotate_envmap(m, E.rotation_about(np.cross(d, [0.0, 1.0, 0.0]), 20.0))
+                m = E.rotate_envmap(m, frames.rotation_about(np.cross(d, [0.0, 1.0, 0.0]), 20.0))
             write_exr(os.path.join(folder, "maps", f"{kind}_{r['id']}.exr"), m)
             entries.append({"id": r["id"], "envmap": f"maps/{kind}_{r['id']}.exr"})
         files[label] = os.path.join(folder, f"{kind}.json")

@@ -34,7 +34,7 @@ __all__ = [
     "mitsuba_sensor_to_world", "travel_direction", "tangent_basis", "Y_SIZE",
     "PHOTO_CAMERA_TILT_DEG", "ENVMAP_FRAMES", "equirect_to_direction", "direction_to_equirect",
     "equirect_pixel_directions", "equirect_solid_angles", "envmap_rotation", "envmap_to_world",
-    "world_to_envmap", "mitsuba_envmap_to_world",
+    "world_to_envmap", "mitsuba_envmap_to_world", "rotation_about",
 ]
 
 Y_SIZE = 7  # the paper's target vector: pan sin/cos, tilt sin/cos, r, g, b
@@ -521,3 +521,17 @@ def mitsuba_envmap_to_world(frame: str, camera_tilt_deg: float = 0.0, camera_pan
     m = np.eye(4)
     m[:3, :3] = envmap_rotation(frame, camera_tilt_deg, camera_pan_deg) @ MITSUBA_ENVMAP_LOCAL
     return m
+
+
+def rotation_about(axis, angle_deg: float) -> np.ndarray:
+    """3x3 rotation by ``angle_deg`` about ``axis`` (any length), right-handed
+    (Rodrigues): counter-clockwise seen from the tip of the axis.
+
+    >>> bool(np.allclose(rotation_about([0, 0, 2], 30.0), rotation_z(30.0)))
+    True
+    """
+    a = np.asarray(axis, np.float64)
+    a = a / np.linalg.norm(a)
+    t = math.radians(float(angle_deg))
+    k = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    return np.eye(3) + math.sin(t) * k + (1.0 - math.cos(t)) * (k @ k)

@@ -203,7 +203,7 @@ def test_dominant_light_of_a_disc(uv):
     assert dom.share == pytest.approx(1.0)
     # turned by 20 deg about an axis at right angles to the light: the light moves 20 deg
     axis = np.cross(d, [0.3, 0.9, 0.1])
-    rot = E.rotation_about(axis, 20.0)
+    rot = frames.rotation_about(axis, 20.0)
     turned = E.dominant_light(E.rotate_envmap(m, rot))
     assert _angle_deg(turned.direction, d) == pytest.approx(20.0, abs=ROTATION_TOL_DEG)
     assert _angle_deg(turned.direction, rot @ d) <= ROTATION_TOL_DEG
@@ -332,7 +332,7 @@ def _map_variants(dataset, records, tmp_path):
             if kind == "blur":
                 m = E.blur_envmap(m, 30.0)
             elif kind == "turn":
-                m = E.rotate_envmap(m, E.rotation_about(np.cross(d, [0.0, 0.0, 1.0]), 20.0))
+                m = E.rotate_envmap(m, frames.rotation_about(np.cross(d, [0.0, 0.0, 1.0]), 20.0))
             write_exr(tmp_path / "maps" / f"{kind}_{r['id']}.exr", m)
             entries.append({"id": r["id"], "envmap": f"maps/{kind}_{r['id']}.exr"})
         files[kind] = tmp_path / f"{kind}.json"

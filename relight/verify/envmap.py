@@ -265,15 +265,6 @@ def blur_envmap(image: np.ndarray, radius_deg: float) -> np.ndarray:
     return out.reshape(h, w, 3).astype(np.float32)
 
 
-def rotation_about(axis, angle_deg: float) -> np.ndarray:
-    """3x3 rotation by ``angle_deg`` about unit ``axis`` (right hand)."""
-    a = np.asarray(axis, np.float64)
-    a = a / np.linalg.norm(a)
-    t = math.radians(angle_deg)
-    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-    return np.eye(3) + math.sin(t) * k + (1 - math.cos(t)) * k @ k
-
-
 # --- a map's light in a scene -----------------------------------------------------------
 
 def envmap_light(image: np.ndarray, frame: str, camera_tilt_deg: float, camera_pan_deg: float = 0.0):
