@@ -18,6 +18,9 @@ Convention:
     * ``to_light`` vectors point from the scene toward the light; Mitsuba's
       ``directional`` emitter ``direction`` is the way light travels. Only
       :func:`travel_direction` flips between the two.
+    * Environment maps (equirectangular, ``W == 2 H``): their own frame, the camera and
+      world frames of a map and Mitsuba's ``envmap`` frame are in the section
+      "environment maps" at the end of this module (docs/conventions.md defines them).
 
 Angles are degrees at every public edge; radians stay inside the maths.
 """
