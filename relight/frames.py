@@ -18,6 +18,9 @@ Convention:
     * ``to_light`` vectors point from the scene toward the light; Mitsuba's
       ``directional`` emitter ``direction`` is the way light travels. Only
       :func:`travel_direction` flips between the two.
+    * Environment maps (equirectangular, ``W == 2 H``): their own frame, the camera and
+      world frames of a map and Mitsuba's ``envmap`` frame are in the section
+      "environment maps" at the end of this module (docs/conventions.md defines them).
 
 Angles are degrees at every public edge; radians stay inside the maths.
 """
@@ -32,7 +35,9 @@ __all__ = [
     "direction", "pan_rel_deg", "encode_y", "decode_y", "camera_basis",
     "camera_position", "camera_to_world", "world_to_camera", "camera_to_world_vector",
     "mitsuba_sensor_to_world", "travel_direction", "tangent_basis", "Y_SIZE",
-    "PHOTO_CAMERA_TILT_DEG",
+    "PHOTO_CAMERA_TILT_DEG", "ENVMAP_FRAMES", "equirect_to_direction", "direction_to_equirect",
+    "equirect_pixel_directions", "equirect_solid_angles", "envmap_rotation", "envmap_to_world",
+    "world_to_envmap", "mitsuba_envmap_to_world", "rotation_about",
 ]
 
 Y_SIZE = 7  # the paper's target vector: pan sin/cos, tilt sin/cos, r, g, b
@@ -394,3 +399,142 @@ def camera_to_pan_tilt(to_light_cam, camera_tilt_deg: float) -> tuple[float, flo
     world = camera_to_world_vector(np.asarray(to_light_cam, np.float64), camera_tilt_deg)
     _, pan_deg, tilt_deg = cartesian_to_spherical(world)
     return float(pan_deg), float(tilt_deg)
+
+
+# --- environment maps (equirectangular) ------------------------------------------------
+#
+# Convention (docs/conventions.md, "Environment-map predictions"):
+#   * A map is ``(H, W, 3)``, ``W == 2 H``; u = (column + 0.5) / W runs left to right,
+#     v = (row + 0.5) / H top to bottom; pixel centres at +0.5.
+#   * Its own frame is a camera frame (x right, y up, z toward the viewer's back):
+#     ``phi = 360 (u - 0.5)`` degrees of azimuth from the viewing direction (-z) toward
+#     the right (+x), ``theta = 90 - 180 v`` degrees of elevation above the x-z plane
+#     (+y = up = the image's up):
+#     ``d = (cos theta sin phi, sin theta, -cos theta cos phi)``.
+#     The centre column (u = 0.5) looks along the viewing direction, u = 0.75 to the
+#     right, u = 0.25 to the left, the side columns (u = 0, 1) behind; the top row is up.
+#   * ``envmap_frame = "camera"``: that frame is the image's camera frame (this module's
+#     camera frame: x image right, y image up, z toward the camera).
+#     ``envmap_frame = "world"``: that frame is the camera frame of a level camera at
+#     pan 0 (x = world +Y, y = world +Z, z = world +X): v = 0 is the zenith, the centre
+#     column looks toward pan 180 (-X) and pan = wrap360(-360 u), tilt = 90 - 180 v.
+ENVMAP_FRAMES = ("camera", "world")
+
+
+def equirect_to_direction(u, v) -> np.ndarray:
+    """Unit vectors ``(..., 3)`` in the map's own frame of map coordinates ``u, v`` in
+    [0, 1] (u left to right, v top to bottom; see the convention above).
+
+    The centre of the map looks along -z (forward), u = 0.75 along +x (right), v = 0 up:
+
+    >>> (np.round(equirect_to_direction([0.5, 0.75, 0.3], [0.5, 0.5, 0.0]), 12) + 0.0).tolist()
+    [[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
+    """
+    phi_rad = 2.0 * np.pi * (np.asarray(u, dtype=np.float64) - 0.5)
+    theta_rad = np.pi * (0.5 - np.asarray(v, dtype=np.float64))
+    phi_rad, theta_rad = np.broadcast_arrays(phi_rad, theta_rad)
+    return np.stack([np.cos(theta_rad) * np.sin(phi_rad), np.sin(theta_rad),
+                     -np.cos(theta_rad) * np.cos(phi_rad)], axis=-1)
+
+
+def direction_to_equirect(d) -> tuple[np.ndarray, np.ndarray]:
+    """Map coordinates ``(u in [0, 1), v in [0, 1])`` of directions ``(..., 3)`` (any
+    length) in the map's own frame: the inverse of :func:`equirect_to_direction`.
+
+    >>> u, v = direction_to_equirect([[1.0, 0.0, 0.0], [0.0, 0.0, 2.0]])
+    >>> u.tolist(), v.tolist()
+    ([0.75, 0.0], [0.5, 0.5])
+    """
+    d = np.asarray(d, dtype=np.float64)
+    d = d / np.linalg.norm(d, axis=-1, keepdims=True)
+    phi_rad = np.arctan2(d[..., 0], -d[..., 2])
+    u = np.mod(phi_rad / (2.0 * np.pi) + 0.5, 1.0)
+    u = np.where(u >= 1.0, 0.0, u)
+    v = np.arccos(np.clip(d[..., 1], -1.0, 1.0)) / np.pi
+    return u, v
+
+
+def equirect_pixel_directions(height: int, width: int) -> np.ndarray:
+    """``(height, width, 3)`` unit vectors of the pixel centres of a map, in its own frame."""
+    u = (np.arange(width) + 0.5) / width
+    v = (np.arange(height) + 0.5) / height
+    return equirect_to_direction(u[None, :], v[:, None])
+
+
+def equirect_solid_angles(height: int, width: int) -> np.ndarray:
+    """``(height, 1)`` solid angle (steradians) of one pixel of each row of an
+    equirectangular map: ``(2 pi / W) (cos(pi i / H) - cos(pi (i + 1) / H))``; the whole
+    map sums to 4 pi exactly.
+
+    >>> bool(np.isclose(equirect_solid_angles(8, 16).sum() * 16, 4 * np.pi))
+    True
+    """
+    edges = np.cos(np.pi * np.arange(height + 1) / height)
+    return ((2.0 * np.pi / width) * (edges[:-1] - edges[1:]))[:, None]
+
+
+def envmap_rotation(frame: str, camera_tilt_deg: float = 0.0, camera_pan_deg: float = 0.0) -> np.ndarray:
+    """3x3 rotation from a map's own frame to the world frame.
+
+    ``frame = "camera"``: the image's camera (tilt and pan in degrees; columns right, up,
+    toward the camera, as :func:`camera_to_world_vector`); ``"world"``: a level camera at
+    pan 0 whatever the arguments.
+
+    A world map's centre column looks toward -X (pan 180), its top row at the zenith:
+
+    >>> rot = envmap_rotation("world")
+    >>> (np.round(rot @ equirect_to_direction(0.5, 0.5), 12) + 0.0).tolist()
+    [-1.0, 0.0, 0.0]
+    """
+    if frame not in ENVMAP_FRAMES:
+        raise ValueError(f"envmap frame must be one of {', '.join(ENVMAP_FRAMES)}, got {frame!r}")
+    if frame == "world":
+        camera_tilt_deg, camera_pan_deg = 0.0, 0.0
+    right, up, forward = camera_basis(camera_tilt_deg, camera_pan_deg)
+    return np.stack([right, up, -forward], axis=1)
+
+
+def envmap_to_world(d_map, frame: str, camera_tilt_deg: float = 0.0, camera_pan_deg: float = 0.0) -> np.ndarray:
+    """World-frame directions ``(..., 3)`` of map-frame directions (see :func:`envmap_rotation`)."""
+    return np.asarray(d_map, dtype=np.float64) @ envmap_rotation(frame, camera_tilt_deg, camera_pan_deg).T
+
+
+def world_to_envmap(d_world, frame: str, camera_tilt_deg: float = 0.0, camera_pan_deg: float = 0.0) -> np.ndarray:
+    """Map-frame directions ``(..., 3)`` of world directions: the inverse of :func:`envmap_to_world`."""
+    return np.asarray(d_world, dtype=np.float64) @ envmap_rotation(frame, camera_tilt_deg, camera_pan_deg)
+
+
+# Mitsuba's ``envmap`` emitter reads local direction ``m`` at
+# ``u = atan2(m_x, -m_z) / (2 pi)``, ``v = acos(m_y) / pi`` (pixel centres at +0.5, local
+# +Y up). Our map frame at the same (u, v) is ``(-m_x, m_y, -m_z)``: a half turn about y.
+MITSUBA_ENVMAP_LOCAL = np.diag([-1.0, 1.0, -1.0])
+
+
+def mitsuba_envmap_to_world(frame: str, camera_tilt_deg: float = 0.0, camera_pan_deg: float = 0.0) -> np.ndarray:
+    """4x4 ``to_world`` of Mitsuba's ``envmap`` emitter that shows a map of the given frame
+    (pixels unchanged) in the world frame.
+
+    The centre pixel of a world map seen from the world: Mitsuba's local direction of
+    u = v = 0.5 is +Z, which must land on world -X:
+
+    >>> m = mitsuba_envmap_to_world("world")
+    >>> (np.round(m[:3, :3] @ [0.0, 0.0, 1.0], 12) + 0.0).tolist()
+    [-1.0, 0.0, 0.0]
+    """
+    m = np.eye(4)
+    m[:3, :3] = envmap_rotation(frame, camera_tilt_deg, camera_pan_deg) @ MITSUBA_ENVMAP_LOCAL
+    return m
+
+
+def rotation_about(axis, angle_deg: float) -> np.ndarray:
+    """3x3 rotation by ``angle_deg`` about ``axis`` (any length), right-handed
+    (Rodrigues): counter-clockwise seen from the tip of the axis.
+
+    >>> bool(np.allclose(rotation_about([0, 0, 2], 30.0), rotation_z(30.0)))
+    True
+    """
+    a = np.asarray(axis, np.float64)
+    a = a / np.linalg.norm(a)
+    t = math.radians(float(angle_deg))
+    k = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    return np.eye(3) + math.sin(t) * k + (1.0 - math.cos(t)) * (k @ k)

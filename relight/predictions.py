@@ -1,4 +1,10 @@
-"""Predictions files, format ``relight.predictions/v1`` (see shared/conventions.md).
+"""Predictions files, formats ``relight.predictions/v1`` and ``/v2`` (see docs/conventions.md).
+
+``v2`` is ``v1`` plus environment-map predictions: an entry may carry ``envmap`` (an
+equirectangular linear-RGB EXR, path relative to the predictions file), ``envmap_frame``
+(``camera`` or ``world``) and an optional ``envmap_scale`` instead of, or beside, the
+point light. A v1 file reads exactly as before (in v1 those keys are unknown extras);
+:func:`write_predictions` writes v1 unless an entry carries a map.
 
 A prediction gives either ``pan_deg`` (= pan_rel, the light pan relative to the camera)
 + ``tilt_deg`` (light elevation) + ``rgb``, or the raw 7-vector ``y`` (decoded with the
@@ -13,7 +19,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -21,26 +27,43 @@ from relight import frames
 from relight.errors import PredictionsError
 
 PREDICTIONS_FORMAT = "relight.predictions/v1"
+PREDICTIONS_FORMAT_V2 = "relight.predictions/v2"   # v1 + environment maps
+PREDICTIONS_FORMATS = (PREDICTIONS_FORMAT, PREDICTIONS_FORMAT_V2)
+ENVMAP_KEYS = ("envmap", "envmap_frame", "envmap_scale")
+ENVMAP_FRAMES = frames.ENVMAP_FRAMES
 
 
 @dataclass(frozen=True)
 class Prediction:
-    """One validated entry. Exactly one of (pan_deg, tilt_deg, rgb) or y is set."""
+    """One validated entry. At most one of (pan_deg, tilt_deg, rgb) or y is set; an
+    environment-map entry (v2) has ``envmap`` (absolute path once read from a file),
+    ``envmap_frame`` and ``envmap_scale`` and may have neither."""
     id: str
     pan_deg: float | None = None
     tilt_deg: float | None = None
     rgb: tuple[float, float, float] | None = None
     y: tuple[float, ...] | None = None
     extra: dict = field(default_factory=dict, compare=False)
+    envmap: str | None = None
+    envmap_frame: str = "camera"
+    envmap_scale: float = 1.0
 
     @property
     def colour_only(self) -> bool:
         """True for an entry without a direction (a colour-constancy baseline)."""
-        return self.y is None and self.pan_deg is None
+        return self.y is None and self.pan_deg is None and self.envmap is None
+
+    @property
+    def has_point_light(self) -> bool:
+        """True when the entry gives a point light (angles or ``y``)."""
+        return self.y is not None or self.pan_deg is not None
 
     def resolve(self, camera_tilt_deg: float, direction_if_missing=None) -> tuple[float, float, np.ndarray]:
         """``(pan_rel_deg, tilt_deg, rgb unit norm)``; ``y`` needs the camera tilt.
         A colour-only entry takes ``direction_if_missing`` = (pan_rel_deg, tilt_deg)."""
+        if self.envmap is not None and not self.has_point_light:
+            raise PredictionsError(f"entry {self.id!r}: an environment-map prediction has no point "
+                                   "light here (relight envmap to-light gives its dominant light)")
         if self.colour_only:
             if direction_if_missing is None:
                 raise PredictionsError(f"entry {self.id!r}: colour-only prediction has no direction")
@@ -98,9 +121,31 @@ def _check_optional(extra: dict, entry: str) -> None:
                                f"got {extra['colour_reliable']!r}")
 
 
-def parse_entry(raw, index: int, colour_only: bool = False) -> Prediction:
+def _envmap_fields(raw: dict, entry: str) -> dict:
+    """The validated environment-map fields of a v2 entry (empty without ``envmap``)."""
+    if "envmap" not in raw:
+        stray = [k for k in ENVMAP_KEYS if k in raw]
+        if stray:
+            raise PredictionsError(f"entry {entry}: {', '.join(stray)} without envmap")
+        return {}
+    path = raw["envmap"]
+    if not isinstance(path, str) or not path.strip() or "\0" in path:
+        raise PredictionsError(f"entry {entry}: envmap must be a path string, got {path!r}")
+    frame = raw.get("envmap_frame", "camera")
+    if frame not in ENVMAP_FRAMES:
+        raise PredictionsError(f"entry {entry}: envmap_frame must be one of {', '.join(ENVMAP_FRAMES)}, "
+                               f"got {frame!r}")
+    scale = raw.get("envmap_scale", 1.0)
+    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not math.isfinite(scale) \
+            or scale <= 0:
+        raise PredictionsError(f"entry {entry}: envmap_scale must be a positive finite number, got {scale!r}")
+    return {"envmap": path, "envmap_frame": frame, "envmap_scale": float(scale)}
+
+
+def parse_entry(raw, index: int, colour_only: bool = False, version: int = 1) -> Prediction:
     """Validate one raw JSON entry (``index`` is its position, for messages); with
-    ``colour_only`` the entry needs only ``id`` and ``rgb``."""
+    ``colour_only`` the entry needs only ``id`` and ``rgb``; ``version`` 2 reads the
+    environment-map fields (an entry may then carry a map and no point light)."""
     if not isinstance(raw, dict):
         raise PredictionsError(f"entry #{index}: expected a JSON object, got {type(raw).__name__}")
     pid = raw.get("id")
@@ -109,8 +154,12 @@ def parse_entry(raw, index: int, colour_only: bool = False) -> Prediction:
     name = f"#{index} (id {pid!r})"
     if "/" in pid or "\\" in pid or pid in (".", "..") or "\0" in pid:
         raise PredictionsError(f"entry {name}: id must be a plain name, not a path")
-    extra = {k: v for k, v in raw.items() if k not in ("id", "pan_deg", "tilt_deg", "rgb", "y")}
+    env = _envmap_fields(raw, name) if version >= 2 and not colour_only else {}
+    extra = {k: v for k, v in raw.items() if k not in ("id", "pan_deg", "tilt_deg", "rgb", "y")
+             and not (env and k in ENVMAP_KEYS)}
     _check_optional(extra, name)
+    if env and not any(k in raw for k in ("pan_deg", "tilt_deg", "rgb", "y")):
+        return Prediction(id=pid, extra=extra, **env)
     if colour_only:
         if "rgb" not in raw:
             raise PredictionsError(f"entry {name}: missing rgb")
@@ -125,7 +174,7 @@ def parse_entry(raw, index: int, colour_only: bool = False) -> Prediction:
             raise PredictionsError(f"entry {name}: rgb part of y must be non-negative and non-zero")
         if y[0] == 0 and y[1] == 0 or y[2] == 0 and y[3] == 0:
             raise PredictionsError(f"entry {name}: a sin/cos pair of y is (0, 0): no angle")
-        return Prediction(id=pid, y=y, extra=extra)
+        return Prediction(id=pid, y=y, extra=extra, **env)
     missing = [k for k in ("pan_deg", "tilt_deg", "rgb") if k not in raw]
     if missing:
         raise PredictionsError(f"entry {name}: missing {', '.join(missing)} (or give 'y')")
@@ -135,7 +184,7 @@ def parse_entry(raw, index: int, colour_only: bool = False) -> Prediction:
         raise PredictionsError(f"entry {name}: rgb must be non-negative and non-zero, got {list(rgb)}")
     if not -90.0 <= tilt <= 90.0:
         raise PredictionsError(f"entry {name}: tilt_deg must be in [-90, 90], got {tilt}")
-    return Prediction(id=pid, pan_deg=pan, tilt_deg=tilt, rgb=rgb, extra=extra)
+    return Prediction(id=pid, pan_deg=pan, tilt_deg=tilt, rgb=rgb, extra=extra, **env)
 
 
 @dataclass
@@ -157,9 +206,11 @@ def read_predictions(path: str | os.PathLike, skip_bad: bool = False) -> Predict
         raise PredictionsError(f"cannot read predictions file {path}: {exc.strerror}") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise PredictionsError(f"{path}: malformed JSON ({exc})") from None
-    if not isinstance(data, dict) or data.get("format") != PREDICTIONS_FORMAT:
+    if not isinstance(data, dict) or data.get("format") not in PREDICTIONS_FORMATS:
         got = data.get("format") if isinstance(data, dict) else type(data).__name__
-        raise PredictionsError(f"{path}: expected format {PREDICTIONS_FORMAT!r}, got {got!r}")
+        raise PredictionsError(f"{path}: expected format {PREDICTIONS_FORMAT!r} or "
+                               f"{PREDICTIONS_FORMAT_V2!r}, got {got!r}")
+    version = 2 if data["format"] == PREDICTIONS_FORMAT_V2 else 1
     entries = data.get("predictions")
     if not isinstance(entries, list):
         raise PredictionsError(f"{path}: 'predictions' must be a list")
@@ -175,10 +226,12 @@ def read_predictions(path: str | os.PathLike, skip_bad: bool = False) -> Predict
     seen = set()
     for i, raw in enumerate(entries):
         try:
-            p = parse_entry(raw, i, colour_only)
+            p = parse_entry(raw, i, colour_only, version)
             if p.id in seen:
                 raise PredictionsError(f"entry #{i} (id {p.id!r}): duplicate id")
             seen.add(p.id)
+            if p.envmap is not None:   # relative to the predictions file's folder
+                p = replace(p, envmap=os.path.join(os.path.dirname(os.path.abspath(path)), p.envmap))
             out.predictions.append(p)
         except PredictionsError as exc:
             if not skip_bad:
@@ -191,16 +244,19 @@ def write_predictions(path: str | os.PathLike, entries: list[dict], dataset: str
                       colour_only: bool = False, inputs=(), transaction=None, **meta) -> None:
     """Write a predictions file atomically. Each entry: ``{"id", "pan_deg", "tilt_deg",
     "rgb"}`` or ``{"id", "y"}`` (extra keys are kept), or ``{"id", "rgb"}`` with
-    ``colour_only``. Entries are validated first (ids unique). The file is refused if it
+    ``colour_only``; any of them may carry ``envmap`` (+ ``envmap_frame``, ``envmap_scale``;
+    the path relative to the file), and then the file is ``relight.predictions/v2``
+    (else v1). Entries are validated first (ids unique). The file is refused if it
     is one of ``inputs`` or inside ``dataset``'s own files; with a
     :class:`relight.fileio.Transaction` it is staged there instead of written."""
     seen = set()
+    version = 2 if any(isinstance(e, dict) and "envmap" in e for e in entries) else 1
     for i, e in enumerate(entries):
-        p = parse_entry(e, i, colour_only)
+        p = parse_entry(e, i, colour_only, version)
         if p.id in seen:
             raise PredictionsError(f"entry #{i} (id {p.id!r}): duplicate id")
         seen.add(p.id)
-    doc = {"format": PREDICTIONS_FORMAT}
+    doc = {"format": PREDICTIONS_FORMAT_V2 if version == 2 else PREDICTIONS_FORMAT}
     if colour_only:
         doc["colour_only"] = True
     if dataset is not None:

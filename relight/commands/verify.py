@@ -1,5 +1,6 @@
-"""``relight compare`` and ``relight figure spheres|pole``: thin argument parsing over
-:mod:`relight.verify.compare`, :mod:`relight.verify.report` and :mod:`relight.verify.figures`."""
+"""``relight compare``, ``relight figure spheres|pole`` and ``relight envmap
+from-light|to-light``: thin argument parsing over :mod:`relight.verify.compare`,
+:mod:`relight.verify.report`, :mod:`relight.verify.figures` and :mod:`relight.verify.envmap`."""
 from __future__ import annotations
 
 import os
@@ -12,18 +13,26 @@ from relight.frames import PHOTO_CAMERA_TILT_DEG as DEFAULT_PHOTO_CAMERA_TILT_DE
 
 def add_commands(sub) -> None:
     c = sub.add_parser("compare", help="re-render each scene under its predicted light; errors + figures",
-                       description="Verify a relight.predictions/v1 file: re-render every image's "
-                                   "scene under the predicted light with Mitsuba and write a report "
-                                   "(panels, Figure 3, metrics.csv, summary.json, tables, index.html).")
-    c.add_argument("predictions", help="predictions file (relight.predictions/v1)")
+                       description="Verify a relight.predictions/v1 or /v2 file: re-render every "
+                                   "image's scene under the predicted light (a point light, or an "
+                                   "HDR environment map: v2 'envmap' entries) with Mitsuba and write "
+                                   "a report (panels, Figure 3, metrics.csv, summary.json, tables, "
+                                   "index.html).")
+    c.add_argument("predictions", help="predictions file (relight.predictions/v1 or /v2)")
     c.add_argument("--data", default=None, help="dataset folder (default: the file's 'dataset' field)")
     c.add_argument("--out", required=True, help="report folder (written atomically)")
     c.add_argument("--skip-bad", action="store_true", help="skip bad entries and list them in the report")
     c.add_argument("--limit", type=at.limit, default=None, help="compare only the first N predictions")
     c.add_argument("--max-columns", type=at.columns, default=8, help="columns of figure3 (default 8)")
+    c.add_argument("--map-floor", action="store_true",
+                   help="environment-map entries: also render the true light made a map (the 'map "
+                        "floor': the least error any map reaches on that scene, since a map is "
+                        "infinitely far and the scene's light is not); one more render per map entry")
     c.add_argument("--quiet", action="store_true", help="no progress bar")
     at.add_scheduler_option(c, "the re-renders")
     c.set_defaults(func=cmd_compare)
+
+    _add_envmap_commands(sub)
 
     f = sub.add_parser("figure", help="figures of predictions: spheres (paper Fig. 4), pole (Fig. 5)")
     fsub = f.add_subparsers(dest="figure", metavar="FIGURE")
@@ -54,6 +63,87 @@ def add_commands(sub) -> None:
     p.set_defaults(func=cmd_pole)
 
 
+def envmap_width(text: str) -> int:
+    """An even map width in [8, 8192] pixels (the map is width x width/2)."""
+    import argparse
+    v = at.int_in(8, 8192, "a map width")(text)
+    if v % 2:
+        raise argparse.ArgumentTypeError(f"expected an even width (the map is width x width/2), got {v}")
+    return v
+
+
+def _add_envmap_commands(sub) -> None:
+    e = sub.add_parser("envmap", help="environment maps <-> point-light predictions",
+                       description="Convert between point-light predictions and HDR environment-map "
+                                   "predictions (equirectangular linear EXR; frame in docs/conventions.md).")
+    esub = e.add_subparsers(dest="envmap_command", metavar="CONVERSION")
+    esub.required = True
+    f = esub.add_parser("from-light", help="one map per entry: a small disc at the predicted light",
+                        description="Write OUTDIR/maps/ID.exr for every point-light entry: a black map "
+                                    "with a small disc (radius 1.5 pixels, at least 1 deg) toward the "
+                                    "predicted light, in the camera frame of the entry's scene, whose "
+                                    "irradiance at the scene centre equals the scene light's; and "
+                                    "OUTDIR/predictions.json (relight.predictions/v2) whose entries "
+                                    "carry only the map.")
+    f.add_argument("predictions", help="point-light predictions file (relight.predictions/v1 or /v2)")
+    f.add_argument("--data", default=None, help="dataset folder (default: the file's 'dataset' field)")
+    f.add_argument("--out", required=True, help="output folder (written atomically)")
+    f.add_argument("--width", type=envmap_width, default=256,
+                   help="map width in pixels, even; the height is half (default 256)")
+    f.add_argument("--frame", choices=("camera", "world"), default="camera",
+                   help="frame of the maps (default camera: the centre column looks along the view)")
+    f.add_argument("--quiet", action="store_true", help="no progress bar")
+    f.set_defaults(func=cmd_envmap_from_light)
+    t = esub.add_parser("to-light", help="the dominant point light of every map entry",
+                        description="Write a relight.predictions/v1 file in which every map entry becomes "
+                                    "the point light of its map's dominant light (brightest region "
+                                    "after a 10 deg blur: centroid direction, mean colour); other "
+                                    "entries are copied. Camera-frame maps take the camera tilt from "
+                                    "the dataset record (--data or the file's 'dataset'), else from "
+                                    "the entry's camera_tilt_deg.")
+    t.add_argument("predictions", help="predictions file with envmap entries (relight.predictions/v2)")
+    t.add_argument("--out", required=True, help="output predictions file (.json)")
+    t.add_argument("--data", default=None, help="dataset folder (default: the file's 'dataset' field)")
+    t.add_argument("--quiet", action="store_true", help="no progress bar")
+    t.set_defaults(func=cmd_envmap_to_light)
+
+
+def _is_envmap_folder(path: str) -> bool:
+    import json
+    try:
+        with open(os.path.join(path, "predictions.json")) as f:
+            return "envmap_width" in json.load(f)
+    except (OSError, ValueError, TypeError):
+        return False
+
+
+def cmd_envmap_from_light(args) -> int:
+    from relight.fileio import OutputError, check_folder_target, check_outputs
+    from relight.verify.envmap import from_light
+    out = os.path.abspath(args.out)
+    if os.path.lexists(out) and not os.path.isdir(out):
+        raise OutputError(f"--out {out} exists and is not a folder")
+    check_outputs([out], [args.predictions, args.data], replaces_folder=True)
+    check_folder_target(out)
+    if os.path.isdir(out) and os.listdir(out) and not _is_envmap_folder(out):
+        raise OutputError(f"--out {out} exists and is not an environment-map folder; choose another --out")
+    n = from_light(args.predictions, args.data, out, width=args.width, frame=args.frame,
+                   progress=not args.quiet)
+    print(f"{out}: {n} maps of {args.width} x {args.width // 2} ({args.frame} frame), "
+          f"predictions.json lists them")
+    return 0
+
+
+def cmd_envmap_to_light(args) -> int:
+    from relight.fileio import check_file_target, check_outputs
+    from relight.verify.envmap import to_light
+    check_outputs([args.out], [args.predictions, args.data])
+    check_file_target(args.out)
+    n = to_light(args.predictions, args.out, data_dir=args.data, progress=not args.quiet)
+    print(f"{args.out}: dominant light of {n} maps")
+    return 0
+
+
 def cmd_compare(args) -> int:
     from relight.verify.compare import compare_predictions
     from relight.fileio import check_folder_target, check_outputs
@@ -65,7 +155,7 @@ def cmd_compare(args) -> int:
     check_out(out)
     comparison = compare_predictions(args.predictions, data_dir=args.data, limit=args.limit,
                                      skip_bad=args.skip_bad, progress=not args.quiet,
-                                     scheduler=args.scheduler)
+                                     scheduler=args.scheduler, map_floor=args.map_floor)
     check_outputs([out], [comparison.dataset_dir], replaces_folder=True)
     if not comparison.items:
         first = f" (first: {comparison.bad[0][0]}: {comparison.bad[0][1]})" if comparison.bad else ""
@@ -74,9 +164,11 @@ def cmd_compare(args) -> int:
     settings = {"command": "compare", "predictions": os.path.abspath(args.predictions),
                 "data": comparison.dataset_dir, "out": out, "skip_bad": bool(args.skip_bad),
                 "limit": args.limit, "max_columns": args.max_columns,
+                "map_floor": bool(args.map_floor),
                 "argv": ["relight", "compare", args.predictions] + (["--data", args.data] if args.data else [])
                 + ["--out", args.out] + (["--skip-bad"] if args.skip_bad else [])
-                + (["--limit", str(args.limit)] if args.limit else [])}
+                + (["--limit", str(args.limit)] if args.limit else [])
+                + (["--map-floor"] if args.map_floor else [])}
     summary = write_report(comparison, out, settings, max_columns=args.max_columns,
                            progress=not args.quiet)
     d = summary["light_errors_deg"]

@@ -48,6 +48,7 @@ class TemplateKey:
     texture_res: int
     slots: tuple[tuple[int, int], ...]  # (vertex count, face count) per object slot
     sampler: str = "independent"        # Mitsuba sampler plugin (render.sampler)
+    envmap_shape: tuple[int, int] | None = None   # (H, W): an ``envmap`` emitter, no point light
 
 
 def object_mesh(obj: ObjectSpec) -> shapes.Mesh:
@@ -109,12 +110,14 @@ def _user_mesh(path: str) -> shapes.Mesh:
     return shapes.Mesh(vertices=v, faces=f, normals=shapes.vertex_normals(v, f), uv=uv)
 
 
-def template_key(spec: SceneSpec, meshes: list[shapes.Mesh]) -> TemplateKey:
+def template_key(spec: SceneSpec, meshes: list[shapes.Mesh],
+                 envmap_shape: tuple[int, int] | None = None) -> TemplateKey:
     slots = [(len(m.vertices), len(m.faces)) for m in meshes]
     while len(slots) < N_OBJECT_SLOTS:
         slots.append(slots[0] if slots else (shapes.DEFAULT_NU * shapes.DEFAULT_NV, 0))
     return TemplateKey(max(N_WALL_SLOTS, spec.room.n_walls), spec.render.res, spec.render.max_depth,
-                       spec.room.texture_res, tuple(slots), spec.render.sampler)
+                       spec.room.texture_res, tuple(slots), spec.render.sampler,
+                       None if envmap_shape is None else (int(envmap_shape[0]), int(envmap_shape[1])))
 
 
 def wall_to_world(k: int, n_walls: int, inradius_m: float, height_m: float,
@@ -181,7 +184,8 @@ class SceneTemplate:
             "sensor": render.sensor(key.res, 40.0, key.sampler, mi.ScalarTransform4f().look_at(
                 origin=[20, 0, 5], target=[0, 0, 0], up=[0, 0, 1])),   # pose and fov: set by apply
             "light": {"type": "point", "position": [0.0, 0.0, 30.0],
-                      "intensity": {"type": "rgb", "value": [1.0, 1.0, 1.0]}},
+                      "intensity": {"type": "rgb", "value": [1.0, 1.0, 1.0]}} if key.envmap_shape is None
+            else {"type": "envmap", "bitmap": mi.Bitmap(np.ones((*key.envmap_shape, 3), np.float32))},
             "floor": {"type": "rectangle",
                       "to_world": mi.ScalarTransform4f().scale([FLOOR_HALF_SIZE_M, FLOOR_HALF_SIZE_M, 1.0]),
                       "bsdf": {"type": "diffuse", "reflectance": bitmap(
@@ -249,6 +253,8 @@ class SceneTemplate:
         """Move the point light and set its radiant intensity (W/sr per channel);
         call ``self.params.update()`` after (``apply`` does)."""
         mi = backend.mitsuba()
+        if self.key.envmap_shape is not None:   # an environment-map scene has no point light
+            return
         self.params["light.position"] = mi.Point3f(*[float(x) for x in position_m])
         self.params["light.intensity.value"] = mi.Color3f(*[float(x) for x in intensity])
 
@@ -260,6 +266,22 @@ class SceneTemplate:
         """Move the point light to ``position_m`` with radiant ``intensity`` (W/sr per
         channel), then render as :meth:`render`; the light stays there."""
         self.set_light(position_m, intensity)
+        self.params.update()
+        return self.render(spp, seed)
+
+    def render_under_envmap(self, envmap, to_world, spp: int, seed: int) -> np.ndarray:
+        """Light the scene by an equirectangular map instead (a template made with
+        ``envmap_shape``): ``envmap`` ``(H, W, 3)`` linear radiance in Mitsuba's
+        ``envmap`` layout (:func:`relight.verify.envmap.mitsuba_layout`), ``to_world`` its 4x4 (:func:`relight.frames.mitsuba_envmap_to_world`);
+        then render as :meth:`render`."""
+        mi = backend.mitsuba()
+        envmap = np.asarray(envmap, np.float32)
+        if self.key.envmap_shape is None or envmap.shape != (*self.key.envmap_shape, 3):
+            raise ValueError(f"this template holds a {self.key.envmap_shape} map, got {envmap.shape}")
+        # the plugin stores the map with one wrapped column on each side (periodic in u)
+        padded = np.concatenate([envmap[:, -1:], envmap, envmap[:, :1]], axis=1)
+        self.params["light.data"] = mi.TensorXf(np.ascontiguousarray(padded))
+        self.params["light.to_world"] = mi.AffineTransform4f(np.asarray(to_world, np.float64))
         self.params.update()
         return self.render(spp, seed)
 
@@ -281,15 +303,17 @@ class SceneBuilder:
         self._templates: dict[TemplateKey, SceneTemplate] = {}
         self.max_templates = max_templates
 
-    def template_for(self, spec: SceneSpec) -> SceneTemplate:
-        """The template holding ``spec`` (applied), loading one if this structure is new."""
-        return self.template(spec, [object_mesh(o) for o in spec.objects])
+    def template_for(self, spec: SceneSpec, envmap_shape: tuple[int, int] | None = None) -> SceneTemplate:
+        """The template holding ``spec`` (applied), loading one if this structure is new;
+        with ``envmap_shape`` (H, W) one lit by an environment map of that size instead."""
+        return self.template(spec, [object_mesh(o) for o in spec.objects], envmap_shape)
 
-    def template(self, spec: SceneSpec, meshes: list[shapes.Mesh]) -> SceneTemplate:
+    def template(self, spec: SceneSpec, meshes: list[shapes.Mesh],
+                 envmap_shape: tuple[int, int] | None = None) -> SceneTemplate:
         """Like :meth:`template_for` with the object meshes already made."""
         if len(meshes) > N_OBJECT_SLOTS:
             raise SceneFileError(f"at most {N_OBJECT_SLOTS} objects per scene, got {len(meshes)}")
-        key = template_key(spec, meshes)
+        key = template_key(spec, meshes, envmap_shape)
         template = self._templates.get(key)
         if template is None:
             if len(self._templates) >= self.max_templates:

@@ -91,3 +91,44 @@ def ssim(a, b, data_range: float = DEFAULT_PEAK, sigma_px: float = SSIM_SIGMA_PX
 def image_errors(a, b, peak: float = DEFAULT_PEAK) -> dict[str, float]:
     """``{"rmse", "psnr_db", "ssim"}`` between two linear images (``peak`` as in :func:`psnr`)."""
     return {"rmse": rmse(a, b), "psnr_db": psnr(a, b, peak), "ssim": ssim(a, b, peak)}
+
+
+# --- scores that mean the same for every kind of light prediction --------------------
+# Used by compare after it fits one global scale (a map's exposure is arbitrary).
+RGB_ANGLE_MIN_NORM = 1e-6   # pixels darker than this x the brightest are left out of the angle
+
+
+def fitted_scale(a, b) -> float:
+    """The one global scale ``s`` minimising ``sum (s b - a)^2`` over all pixels and
+    channels: ``<a, b> / <b, b>`` (1 for a black ``b``)."""
+    a, b = _pair(a, b)
+    bb = float(np.sum(b * b))
+    return float(np.sum(a * b) / bb) if bb > 0 else 1.0
+
+
+def light_scores(a, b) -> dict[str, float]:
+    """Scores of a re-render ``b`` against the original ``a`` (linear ``(H, W, 3)``):
+
+    * ``scale``: :func:`fitted_scale`;
+    * ``rel_rmse``: ``RMSE(scale b, a) / mean(a)`` (the noise calibration's relative RMSE);
+    * ``si_rmse``: the same with one least-squares scale per channel (insensitive to a
+      global colour cast as well as exposure: what is left is shading and shadows);
+    * ``rgb_angle_deg``: mean over pixels (both brighter than ``RGB_ANGLE_MIN_NORM`` x
+      the brightest) of the angle between their RGB vectors, degrees (LeGendre et al.
+      2019; scale invariant per pixel).
+    """
+    a, b = _pair(a, b)
+    mean = float(np.mean(a))
+    s = fitted_scale(a, b)
+    rel = float(np.sqrt(np.mean((s * b - a) ** 2)) / mean) if mean > 0 else float("nan")
+    bb = np.sum(b * b, axis=(0, 1))
+    s_c = np.where(bb > 0, np.sum(a * b, axis=(0, 1)) / np.where(bb > 0, bb, 1.0), 1.0)
+    si = float(np.sqrt(np.mean((s_c * b - a) ** 2)) / mean) if mean > 0 else float("nan")
+    na, nb = np.linalg.norm(a, axis=-1), np.linalg.norm(b, axis=-1)
+    live = (na > RGB_ANGLE_MIN_NORM * na.max()) & (nb > RGB_ANGLE_MIN_NORM * max(nb.max(), 1e-300))
+    if live.any():
+        cos = np.sum(a * b, axis=-1)[live] / (na[live] * nb[live])
+        angle = float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))).mean())
+    else:
+        angle = float("nan")
+    return {"scale": s, "rel_rmse": rel, "si_rmse": si, "rgb_angle_deg": angle}

@@ -27,7 +27,8 @@ import numpy as np
 from relight import metrics
 from relight.fileio import atomic_folder
 from relight.verify import figures
-from relight.verify.compare import IMAGE_METRICS, STRENGTH_NOTE, CompareError, Comparison
+from relight.verify.compare import (ENVMAP_NOTE, IMAGE_METRICS, KINDS, LIGHT_SCORES, STRENGTH_NOTE, CompareError,
+                                    Comparison)
 
 REPORT_FORMAT = "relight.compare-report/v1"
 
@@ -56,6 +57,56 @@ def _image_stats(values) -> dict:
             "median": float(np.median(v)) if v.size else None}
 
 
+def _kind_stats(items) -> dict:
+    """Per kind of prediction: count, light errors (deg), scores after the fitted scale,
+    shadow IoU, and their floors (mean / median)."""
+    out = {}
+    for kind in KINDS:
+        group = [it for it in items if it.kind == kind]
+        if not group:
+            continue
+        d = {"n": len(group)}
+        for m in ("direction", "colour"):
+            d[f"{m}_error_deg"] = _image_stats([it.light_errors_deg[m] for it in group])
+        for m in LIGHT_SCORES:
+            d[m] = _image_stats([it.scores.get(m, math.nan) for it in group])
+            d[f"noise_{m}"] = _image_stats([it.noise_scores.get(m, math.nan) for it in group])
+            d[f"map_floor_{m}"] = _image_stats([it.map_floor.get(m, math.nan) for it in group])
+        d["shadow_iou"] = _image_stats([it.shadow_iou for it in group])
+        d["map_floor_shadow_iou"] = _image_stats([it.map_floor.get("shadow_iou", math.nan) for it in group])
+        d["scale"] = _image_stats([it.scores.get("scale", math.nan) for it in group])
+        out[kind] = d
+    return out
+
+
+def kinds_table(summary: dict) -> str:
+    """Markdown: point-light and environment-map predictions side by side (means;
+    medians of the direction error in brackets)."""
+    kinds = summary.get("by_kind") or {}
+    if not kinds:
+        return ""
+    names = {"point": "point light", "envmap": "environment map"}
+    lines = ["**Every kind of prediction, side by side** (means; direction median in brackets; "
+             "image scores after one fitted global scale; floors: two renders of the true light, "
+             "and for maps the true light made a map)", "",
+             "| Prediction | n | Direction (deg) | Colour (deg) | rel. RMSE | si-RMSE | RGB angle (deg) "
+             "| Shadow IoU | rel. RMSE noise floor | rel. RMSE map floor | Shadow IoU map floor | Scale |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+
+    def f(stat, digits=4):
+        v = stat["mean"] if stat else None
+        return "n/a" if v is None else f"{v:.{digits}f}"
+    for kind, d in kinds.items():
+        med = d["direction_error_deg"]["median"]
+        lines.append(f"| {names.get(kind, kind)} | {d['n']} | {f(d['direction_error_deg'], 2)} "
+                     f"({'n/a' if med is None else f'{med:.2f}'}) | {f(d['colour_error_deg'], 2)} | "
+                     f"{f(d['rel_rmse'])} | {f(d['si_rmse'])} | {f(d['rgb_angle_deg'], 2)} | "
+                     f"{f(d['shadow_iou'], 3)} | {f(d['noise_rel_rmse'])} | {f(d['map_floor_rel_rmse'])} | "
+                     f"{f(d['map_floor_shadow_iou'], 3)} | "
+                     f"{f(d['scale'], 3)} |")
+    return "\n".join(lines) + "\n"
+
+
 def summarise(comparison: Comparison) -> dict:
     """Statistics of a comparison (degrees for light errors, linear units for images)."""
     items = comparison.items
@@ -69,12 +120,14 @@ def summarise(comparison: Comparison) -> dict:
             "dataset": comparison.dataset_dir, "predictions": comparison.predictions_path,
             "light_errors_deg": {m: metrics.summary_stats(errors[m]) for m in metrics.METRICS},
             "image_errors": image, "noise_floor": noise, "tables": tables,
+            "by_kind": _kind_stats(items),
             "seconds": comparison.seconds, "render_seconds": comparison.render_seconds,
             "seconds_per_image": comparison.seconds / len(items) if items else None,
             "notes": [STRENGTH_NOTE,
                       "Image errors compare (a) the dataset's linear EXR with (b) the re-render in "
                       "linear space (PSNR peak 1.0, SSIM data range 1.0); the noise floor compares "
-                      "(a) with a render under the true light and another seed."]}
+                      "(a) with a render under the true light and another seed."]
+            + ([ENVMAP_NOTE] if any(it.kind == "envmap" for it in items) else [])}
 
 
 def image_table(summary: dict) -> str:
@@ -215,7 +268,7 @@ def _index_html(summary: dict, tables_md: str, rows: list[dict], panel_names: li
         out.append("</ul>")
     if rows:
         keys = ["id", "direction_error_deg", "colour_error_deg", "pan_error_deg", "tilt_error_deg",
-                "rmse", "noise_rmse", "ssim", "noise_ssim"]
+                "rmse", "noise_rmse", "ssim", "noise_ssim", "rel_rmse", "rgb_angle_deg", "shadow_iou", "kind"]
         out.append("<h2>Per image</h2><p><a href='metrics.csv'>metrics.csv</a>; click a column "
                    "header to sort.</p><table class='sortable' id='per-image'><thead><tr>"
                    + "".join(f"<th>{k}</th>" for k in keys) + "</tr></thead><tbody>")
@@ -223,6 +276,9 @@ def _index_html(summary: dict, tables_md: str, rows: list[dict], panel_names: li
             cells = [f"<td><a href='#{esc(row['id'])}'>{esc(row['id'])}</a></td>"]
             for k in keys[1:]:
                 v = row[k]
+                if isinstance(v, str):
+                    cells.append(f"<td>{esc(v)}</td>")
+                    continue
                 num = float(v) if isinstance(v, (int, float, np.floating)) else float("nan")
                 cells.append(f"<td data-v='{num!r}' style='text-align:right'>{v:.4g}</td>"
                              if math.isfinite(num) else f"<td data-v='NaN'>{esc(str(v))}</td>")
@@ -271,7 +327,8 @@ def write_report(comparison: Comparison, out_dir: str | os.PathLike, settings: d
                                                 os.path.join(tmp, "figure3.pdf")], max_columns)
             summary["figure3_ids"] = [items[i].id for i in cols]
         tables_md = (metrics.format_tables(summary["tables"]) + "\n" + image_table(summary)
-                     + "\n" + STRENGTH_NOTE + "\n") if items else "No image was compared.\n"
+                     + "\n" + kinds_table(summary) + "\n" + STRENGTH_NOTE + "\n") if items \
+            else "No image was compared.\n"
         if comparison.bad:
             tables_md += "\n**Bad entries (skipped)**\n\n" + "".join(
                 f"- {e}: {r}\n" for e, r in comparison.bad)
