@@ -54,7 +54,7 @@ def main(argv=None) -> int:
     data = os.path.join(args.out, "data")
     t0 = time.perf_counter()
     backend.init(threads=args.threads)
-    from relight.scene.mid import MidConfig
+    from relight.experiments.mid.scene import MidConfig
     stats = mid.generate_mid(data, args.scenes, seed=args.seed, cfg=MidConfig(snoot_m=args.snoot), progress=True,
                              threads=args.threads)
     t_gen = time.perf_counter() - t0

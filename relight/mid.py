@@ -37,8 +37,8 @@ import numpy as np
 
 from relight import frames
 from relight.errors import ConfigError, DatasetError, ProbeError
-from relight.scene import mid as scene_mid
-from relight.scene.mid import MidConfig
+from relight.experiments.mid import scene as scene_mid
+from relight.experiments.mid.scene import MidConfig
 from relight.scene.sampling import read_config_file
 
 MID_FORMAT = "relight.dataset.mid/v1"
