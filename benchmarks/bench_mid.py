@@ -48,7 +48,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     from relight import backend
-    from relight import mid
+    from relight.experiments.mid import dataset as mid
     from relight.net.io import SHIPPED_MODEL, load_model_file
     from relight.net.train import TrainConfig, train
     data = os.path.join(args.out, "data")

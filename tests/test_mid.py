@@ -38,7 +38,7 @@ def test_preset_mid_records_and_masked_copies(tmp_path):
     assert len(records) + len(doc["procedure_failed"]) == 2       # two flash directions
     assert (out / "images" / "0000_ref.png").is_file()             # the reference image
     from relight.imageio import read_srgb8
-    from relight.mid import sphere_mask
+    from relight.experiments.mid.dataset import sphere_mask
     from relight.experiments.mid.scene import MidConfig, sample_scene
     mcfg = MidConfig.from_dict(TINY)
     mask = sphere_mask(mcfg, sample_scene(mcfg, 0, 0))
@@ -151,7 +151,7 @@ def test_train_init_refuses_a_bad_model(tmp_path):
 
 
 def test_tables_on_known_inputs():
-    from relight import mid
+    from relight.experiments.mid import dataset as mid
     truth = {"pan_rel_deg": np.array([0.0, 30.0, 180.0, 200.0]), "tilt_deg": np.array([30.0, 40.0, 50.0, 60.0]),
              "rgb": np.ones((4, 3))}
     pred = {"pan_rel_deg": np.array([10.0, 30.0, 180.0, 160.0]), "tilt_deg": np.array([30.0, 44.0, 50.0, 60.0]),
@@ -183,7 +183,7 @@ def test_one_flash_colour_for_every_room_unless_asked():
     The rooms themselves do not depend on the choice."""
     from relight.colour import cct_duv_to_rgb
     from relight.errors import ConfigError
-    from relight.mid import mid_config
+    from relight.experiments.mid.dataset import mid_config
     from relight.experiments.mid import scene as sm
     fixed = [sm.sample_scene(sm.MidConfig(), 3, i) for i in range(4)]
     free = [sm.sample_scene(sm.MidConfig(flash_cct_k=None), 3, i) for i in range(4)]
@@ -225,7 +225,7 @@ def test_reference_expectation_points_from_the_sphere_to_the_flash():
     outline circle (probe-photograph pixels) and known radius, then the direction from
     its centre to the flash above the camera -- against the sampled room's geometry."""
     from relight import frames
-    from relight.mid import chrome_distance_m, expected_reference
+    from relight.experiments.mid.dataset import chrome_distance_m, expected_reference
     from relight.probe.geometry import Camera, outline_circle
     from relight.experiments.mid import scene as sm
     cfg = sm.MidConfig()

@@ -63,7 +63,7 @@ def add_commands(sub) -> None:
 
 def cmd_generate_mid(args) -> int:
     from relight.fileio import check_outputs
-    from relight.mid import generate_mid, mid_config
+    from relight.experiments.mid.dataset import generate_mid, mid_config
     cfg = mid_config(args.config, res=args.res, spp=args.spp, max_depth=args.max_depth,
                      refused={"--workers": args.workers != 1, "--scheduler": args.scheduler,
                               "--sampler": args.sampler, "--colour-prior": args.colour_prior,
