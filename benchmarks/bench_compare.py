@@ -29,7 +29,7 @@ def main() -> None:
     from relight.dataset import generate, read_manifest
     from relight.predictions import write_predictions
     from relight.scene.build import SceneBuilder
-    from relight.scene.sampling import GeneratorConfig
+    from relight.generator.sampling import GeneratorConfig
     from relight.verify.compare import compare_predictions, moved_light_predictions
     from relight.verify.report import write_report
 

@@ -198,7 +198,7 @@ def main(argv: list[str] | None = None) -> int:
     if blender.blender_python() is None:
         print("bench_cycles: skipped (no Blender environment; run scripts/setup_blender.sh)")
         return 0
-    from relight.scene.sampling import GeneratorConfig, sample_scene
+    from relight.generator.sampling import GeneratorConfig, sample_scene
     cache = os.path.expanduser(args.cache)
     os.makedirs(cache, exist_ok=True)
     targets = [float(t) for t in args.targets.split(",")]

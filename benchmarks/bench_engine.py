@@ -34,7 +34,7 @@ import time
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from relight.dataset import generate  # noqa: E402
-from relight.scene.sampling import GeneratorConfig  # noqa: E402
+from relight.generator.sampling import GeneratorConfig  # noqa: E402
 
 SEED = 3
 

@@ -41,7 +41,7 @@ from relight.dataset import _write_card, generate  # noqa: E402
 from relight.imageio import write_exr, write_png  # noqa: E402
 from relight.scene import noise  # noqa: E402
 from relight.scene.build import SceneBuilder, build_naive  # noqa: E402
-from relight.scene.sampling import GeneratorConfig, sample_scene  # noqa: E402
+from relight.generator.sampling import GeneratorConfig, sample_scene  # noqa: E402
 
 # Sample counts each Mitsuba sampler takes without rounding them.
 EXACT_SPP = {

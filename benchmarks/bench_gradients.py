@@ -45,7 +45,7 @@ TARGETS = "AD+visibility: angle <= 3 deg, ratio 0.9-1.1 (median, large shadows),
 def make_scenes(n_per_group: int, res: int, spp: int, seed: int):
     """``[(group, spec, linear image)]``: generated scenes rendered at ``res`` px."""
     from relight.scene.build import SceneBuilder
-    from relight.scene.sampling import GeneratorConfig, sample_scene
+    from relight.generator.sampling import GeneratorConfig, sample_scene
     out = []
     for g, (name, overrides) in enumerate(GROUPS.items()):
         cfg = GeneratorConfig(res=res, spp=spp, **overrides)

@@ -42,7 +42,7 @@ def ensure_data(folder: str, n: int) -> None:
     """Generate the benchmark's dataset in ``folder`` when it is missing or has fewer
     than ``n`` images (resumes an unfinished one); one line says so."""
     from relight.dataset import MANIFEST, generate, read_manifest
-    from relight.scene.sampling import GeneratorConfig
+    from relight.generator.sampling import GeneratorConfig
     have = len(read_manifest(folder)) if os.path.isfile(os.path.join(folder, MANIFEST)) else 0
     if have >= n:
         return

@@ -39,7 +39,7 @@ import numpy as np
 
 from relight import frames
 from relight.fileio import LOCK_NAME, FolderLock, remove_temps, write_bytes, write_json
-from relight.scene.sampling import LEGACY_CONFIG, GeneratorConfig, sample_scene, split_of
+from relight.generator.sampling import LEGACY_CONFIG, GeneratorConfig, sample_scene, split_of
 from relight.scene.spec import SceneSpec
 from relight.errors import DatasetError
 
@@ -379,7 +379,7 @@ def _check_meshes(cfg: GeneratorConfig) -> None:
     """Load every mesh of ``cfg.mesh_dir`` once, so a bad file fails before any render."""
     if cfg.mesh_dir:
         from relight.scene.build import _user_mesh
-        from relight.scene.sampling import mesh_files
+        from relight.generator.sampling import mesh_files
         for path in mesh_files(cfg.mesh_dir):
             _user_mesh(path)
 

@@ -58,7 +58,7 @@ def dataset_settings(card: dict) -> dict:
     field existed (sampler ``independent``, prior ``hsv``, one-colour objects, pattern backgrounds) and the
     samples per pixel
     the run took (``spp_used``: the card's ``spp``, resolved from the noise target)."""
-    from relight.scene.sampling import LEGACY_CONFIG
+    from relight.generator.sampling import LEGACY_CONFIG
     cfg = LEGACY_CONFIG | dict(card["config"])
     cfg["spp_used"] = card.get("spp") or cfg.get("spp")
     return cfg
@@ -89,7 +89,7 @@ def generate_command(card: dict, path: str, count: int) -> tuple[str, str]:
     without an option go into ``--config CONFIG.json``, which the note spells out)."""
     import dataclasses
 
-    from relight.scene.sampling import GeneratorConfig
+    from relight.generator.sampling import GeneratorConfig
     default = json.loads(json.dumps(dataclasses.asdict(GeneratorConfig())))
     cfg = dataset_settings(card)
     opts = [f"--count {count}", f"--out {path}", f"--seed {card['seed']}"]

@@ -14,7 +14,7 @@ import pytest
 
 from relight.errors import ConfigError
 from relight.scene import textures as T
-from relight.scene.sampling import GeneratorConfig, sample_scene
+from relight.generator.sampling import GeneratorConfig, sample_scene
 from relight.scene.spec import SceneSpec
 
 

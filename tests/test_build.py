@@ -154,7 +154,7 @@ def test_template_equals_scene_built_from_the_spec_directly(mi, tmp_path, parts)
     # was written into it) against a scene dict made straight from the spec; with
     # multi-coloured objects, each part its own mesh and BSDF
     from relight.scene import bsdf, noise
-    from relight.scene.sampling import GeneratorConfig, sample_scene
+    from relight.generator.sampling import GeneratorConfig, sample_scene
     bsdf.register()
     spec = sample_scene(GeneratorConfig(res=32, spp=4, object_parts=parts), 7, 3)
     assert all(len(o.colours) >= parts[0] for o in spec.objects)

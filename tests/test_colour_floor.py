@@ -49,7 +49,7 @@ def test_colour_error_by_object_parts(mi, tmp_path):
     import os
 
     from relight.dataset import generate, read_manifest
-    from relight.scene.sampling import GeneratorConfig
+    from relight.generator.sampling import GeneratorConfig
     from relight.scene.spec import load_scene
     spec = importlib.util.spec_from_file_location(
         "bench_colour_floor", os.path.join(os.path.dirname(__file__), "..", "benchmarks", "bench_colour_floor.py"))
@@ -111,7 +111,7 @@ def test_scene_floor_counts_the_surfaces_an_image_shows(mi, tmp_path):
 
     from relight.dataset import generate, read_manifest
     from relight.scene.build import SceneBuilder
-    from relight.scene.sampling import GeneratorConfig
+    from relight.generator.sampling import GeneratorConfig
     from relight.scene.spec import load_scene
     spec = importlib.util.spec_from_file_location(
         "bench_colour_floor", os.path.join(os.path.dirname(__file__), "..", "benchmarks", "bench_colour_floor.py"))

@@ -10,7 +10,7 @@ import pytest
 
 from relight.dataset import generate, read_manifest
 from relight.engine import EngineError, parse_scheduler, shards
-from relight.scene.sampling import GeneratorConfig
+from relight.generator.sampling import GeneratorConfig
 
 distributed = pytest.importorskip("distributed")
 

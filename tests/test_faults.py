@@ -147,7 +147,7 @@ def world(tmp_path_factory, mi):
 
     from relight.dataset import generate, read_manifest
     from relight.predictions import write_predictions
-    from relight.scene.sampling import GeneratorConfig
+    from relight.generator.sampling import GeneratorConfig
     root = tmp_path_factory.mktemp("faults")
     inp = root / "in"
     inp.mkdir()

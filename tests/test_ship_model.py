@@ -77,7 +77,7 @@ def test_architecture_text_names_each_encoders_modules(ship_model):
 def world(tmp_path_factory):
     from relight.dataset import generate
     from relight.net.train import TrainConfig, train
-    from relight.scene.sampling import GeneratorConfig
+    from relight.generator.sampling import GeneratorConfig
     root = tmp_path_factory.mktemp("ship")
     cfg = GeneratorConfig(res=RES, target_rmse=0.05)
     generate(root / "train", count=8, seed=21, cfg=cfg, progress=False)

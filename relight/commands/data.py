@@ -84,7 +84,7 @@ def cmd_generate(args) -> int:
         return cmd_generate_mid(args)
     from relight.dataset import generate
     from relight.fileio import check_outputs
-    from relight.scene.sampling import GeneratorConfig
+    from relight.generator.sampling import GeneratorConfig
     overrides = dict(res=args.res, spp=args.spp, max_depth=args.max_depth, sampler=args.sampler,
                      target_rmse=args.target_rmse, colour_prior=args.colour_prior, backgrounds=args.backgrounds,
                      object_parts=args.object_parts, mesh_dir=os.path.abspath(args.mesh_dir) if args.mesh_dir else None)

@@ -30,7 +30,7 @@ def cmd_demo(args) -> int:
     from relight.fileio import check_folder_target, check_outputs
     from relight.net.evaluate import evaluate
     from relight.net.predict import load_model
-    from relight.scene.sampling import GeneratorConfig
+    from relight.generator.sampling import GeneratorConfig
     from relight.verify.compare import compare_predictions
     from relight.verify.report import check_out, write_report
     data = os.path.join(args.out, "dataset")

@@ -39,7 +39,7 @@ from relight import frames
 from relight.errors import ConfigError, DatasetError, ProbeError
 from relight.experiments.mid import scene as scene_mid
 from relight.experiments.mid.scene import MidConfig
-from relight.scene.sampling import read_config_file
+from relight.generator.sampling import read_config_file
 
 MID_FORMAT = "relight.dataset.mid/v1"
 REF_ELEVATION_DEG = math.degrees(math.atan(scene_mid.FLASH_OFFSET_M / 2.2))
