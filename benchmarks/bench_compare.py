@@ -26,7 +26,8 @@ def main() -> None:
     args = ap.parse_args()
 
     from relight import backend
-    from relight.dataset import generate, read_manifest
+    from relight.dataset import read_manifest
+    from relight.generator.run import generate
     from relight.predictions import write_predictions
     from relight.scene.build import SceneBuilder
     from relight.generator.sampling import GeneratorConfig

@@ -41,7 +41,8 @@ DATA_SEED, DATA_SPP, DATA_MIN_COUNT = 3, 32, 20
 def ensure_data(folder: str, n: int) -> None:
     """Generate the benchmark's dataset in ``folder`` when it is missing or has fewer
     than ``n`` images (resumes an unfinished one); one line says so."""
-    from relight.dataset import MANIFEST, generate, read_manifest
+    from relight.dataset import MANIFEST, read_manifest
+    from relight.generator.run import generate
     from relight.generator.sampling import GeneratorConfig
     have = len(read_manifest(folder)) if os.path.isfile(os.path.join(folder, MANIFEST)) else 0
     if have >= n:

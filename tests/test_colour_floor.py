@@ -48,7 +48,8 @@ def test_colour_error_by_object_parts(mi, tmp_path):
     import importlib.util
     import os
 
-    from relight.dataset import generate, read_manifest
+    from relight.dataset import read_manifest
+    from relight.generator.run import generate
     from relight.generator.sampling import GeneratorConfig
     from relight.scene.spec import load_scene
     spec = importlib.util.spec_from_file_location(
@@ -109,7 +110,8 @@ def test_scene_floor_counts_the_surfaces_an_image_shows(mi, tmp_path):
     import importlib.util
     import os
 
-    from relight.dataset import generate, read_manifest
+    from relight.dataset import read_manifest
+    from relight.generator.run import generate
     from relight.scene.build import SceneBuilder
     from relight.generator.sampling import GeneratorConfig
     from relight.scene.spec import load_scene

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from relight import frames
-from relight.dataset import generate, read_manifest
+from relight.dataset import read_manifest
+from relight.generator.run import generate
 from relight.generator.sampling import GeneratorConfig
 
 POS_TOL_M = 1e-6

@@ -8,7 +8,8 @@ import time
 
 import pytest
 
-from relight.dataset import generate, read_manifest
+from relight.dataset import read_manifest
+from relight.generator.run import generate
 from relight.engine import EngineError, parse_scheduler, shards
 from relight.generator.sampling import GeneratorConfig
 

@@ -75,7 +75,7 @@ def test_architecture_text_names_each_encoders_modules(ship_model):
 
 @pytest.fixture(scope="module")
 def world(tmp_path_factory):
-    from relight.dataset import generate
+    from relight.generator.run import generate
     from relight.net.train import TrainConfig, train
     from relight.generator.sampling import GeneratorConfig
     root = tmp_path_factory.mktemp("ship")

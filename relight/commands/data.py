@@ -82,7 +82,7 @@ def cmd_generate_mid(args) -> int:
 def cmd_generate(args) -> int:
     if args.preset == "mid":
         return cmd_generate_mid(args)
-    from relight.dataset import generate
+    from relight.generator.run import generate
     from relight.fileio import check_outputs
     from relight.generator.sampling import GeneratorConfig
     overrides = dict(res=args.res, spp=args.spp, max_depth=args.max_depth, sampler=args.sampler,

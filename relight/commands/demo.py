@@ -26,7 +26,7 @@ def add_commands(sub) -> None:
 
 def cmd_demo(args) -> int:
     from relight import metrics
-    from relight.dataset import generate
+    from relight.generator.run import generate
     from relight.fileio import check_folder_target, check_outputs
     from relight.net.evaluate import evaluate
     from relight.net.predict import load_model
