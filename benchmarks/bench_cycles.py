@@ -39,7 +39,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
-from relight import blender  # noqa: E402
+from relight.scene import blender  # noqa: E402
 
 SCENE_SEED = 4242
 LADDER_SPP = (4, 16, 64, 256)   # exact for every Mitsuba sampler but "orthogonal"

@@ -24,7 +24,7 @@ def add_commands(sub) -> None:
 
 
 def cmd_export_blender(args) -> int:
-    from relight.blender import BlenderError, blender_python, run_blender_module
+    from relight.scene.blender import BlenderError, blender_python, run_blender_module
     from relight.scene.spec import SceneFileError, load_scene
     if not args.out.lower().endswith(".blend"):
         raise SceneFileError(f"--out must name a .blend file, got {args.out}")
@@ -33,10 +33,10 @@ def cmd_export_blender(args) -> int:
     spec = load_scene(args.scene)  # bad scene files fail here, before any Blender start
     threads = int(os.environ["RELIGHT_THREADS"]) if os.environ.get("RELIGHT_THREADS") else None
     if importlib.util.find_spec("bpy") is not None:
-        from relight.blender import export_and_render
+        from relight.scene.blender import export_and_render
         return export_and_render(spec, args.out, render_path=args.render, spp=args.spp, threads=threads)
     if blender_python() is None:
-        from relight.blender import INSTALL_HINT
+        from relight.scene.blender import INSTALL_HINT
         raise BlenderError(INSTALL_HINT)
     cmd = ["export", os.path.abspath(args.scene), "--out", os.path.abspath(args.out)]
     if args.render is not None:
