@@ -1,7 +1,8 @@
 """A MID-like dataset (``relight generate --preset mid``) and the paper's Tables 4-5.
 
-Scenes, rendering and the *physical* ground truth are in :mod:`relight.scene.mid`.
-This module writes the dataset (the machinery of :mod:`relight.dataset`: folder lock,
+Scenes, rendering and the *physical* ground truth are in :mod:`relight.experiments.mid.scene`.
+This module writes the dataset (the format of :mod:`relight.dataset`, the machinery of
+:mod:`relight.generator.run`: folder lock,
 atomic files, an append-only manifest, a card, resume by re-running the same command)
 and computes the *procedure's* ground truth: the sphere procedure
 (:func:`relight.probe.run.run_probe`, perspective, the spheres' circles given as a
@@ -9,7 +10,7 @@ person marks them) on the rendered linear image, with the paper's **reference-im
 correction**: the procedure's pan/tilt on the scene's reference image (flash along the
 optical axis) are compared with the assumed ones and that pan/tilt offset is added to
 every image of the scene. The paper assumes the light mounted 10 deg above the camera;
-our rig's flash is :data:`relight.scene.mid.FLASH_OFFSET_M` above it, which is 2-6 deg
+our rig's flash is :data:`relight.experiments.mid.scene.FLASH_OFFSET_M` above it, which is 2-6 deg
 seen from the spheres at 1.2-3.2 m, so the assumed direction is the one from the chrome
 sphere to the flash, the sphere's distance following from its outline and its known
 radius (MID's probes are of known size too): :func:`expected_reference`.
@@ -113,7 +114,7 @@ def chrome_distance_m(entry: dict, cfg: MidConfig, radius_m: float) -> float:
 def expected_reference(entry: dict, camera_tilt_deg: float, distance_m: float | None = None) -> tuple[float, float]:
     """The assumed ``(pan_rel, tilt)`` of the reference image: from the chrome sphere
     (``distance_m`` from the camera along ``chrome_centre_camera``) to the flash,
-    :data:`relight.scene.mid.FLASH_OFFSET_M` above the camera (world up). Without a
+    :data:`relight.experiments.mid.scene.FLASH_OFFSET_M` above the camera (world up). Without a
     distance: toward the camera raised by :data:`REF_ELEVATION_DEG` (the sphere at 2.2 m).
 
     A sphere on the optical axis 2.2 m away, camera level: the flash is 3.1 deg above
