@@ -1,9 +1,9 @@
 """A MID-like dataset (``relight generate --preset mid``) and the paper's Tables 4-5.
 
 Scenes, rendering and the *physical* ground truth are in :mod:`relight.experiments.mid.scene`.
-This module writes the dataset (the format of :mod:`relight.dataset`, the machinery of
-:mod:`relight.generator.run`: folder lock,
-atomic files, an append-only manifest, a card, resume by re-running the same command)
+This module writes the dataset (the format of :mod:`relight.dataset` and the machinery of
+:mod:`relight.generator.run`: folder lock, atomic files, an append-only manifest, a card,
+resume by re-running the same command)
 and computes the *procedure's* ground truth: the sphere procedure
 (:func:`relight.probe.run.run_probe`, perspective, the spheres' circles given as a
 person marks them) on the rendered linear image, with the paper's **reference-image
