@@ -1,4 +1,4 @@
-"""The ideal observer behind the colour target's evidence (README "Multi-coloured
+"""The ideal observer behind the colour target's evidence (docs/generator.md "Multi-coloured
 objects"): the closed-form density of a surface's colour direction under a light,
 against Monte Carlo, and the Bayes floor falling as surfaces are added."""
 import numpy as np
@@ -38,7 +38,7 @@ def test_bayes_floor_falls_with_more_surfaces():
     rng = np.random.default_rng(1)
     cands = np.array([sample_light_colour(rng)[2] for _ in range(1500)])
     few, many = (ideal_observer_errors(n, 60, cands, rng).mean() for n in (2, 60))
-    # README table (2,000 scenes per count): 1 surface 8.14, 3 surfaces 5.37, 30 surfaces 2.22, 100 surfaces 1.28
+    # docs/generator.md table (2,000 scenes per count): 1 surface 8.14, 3 surfaces 5.37, 30 surfaces 2.22, 100 surfaces 1.28
     assert 3.5 < few < 9.0 and many < 2.5 and many < 0.5 * few, (few, many)
 
 
