@@ -296,7 +296,8 @@ class Highlight:
 
 def _luminance(image: np.ndarray) -> np.ndarray:
     img = np.asarray(image, np.float64)
-    return img if img.ndim == 2 else img[..., :3] @ np.array([0.2126, 0.7152, 0.0722])
+    from relight.colour import luminance
+    return img if img.ndim == 2 else luminance(img)
 
 
 def sphere_pixels(camera: Camera, sphere: Sphere, mask: np.ndarray | None = None,

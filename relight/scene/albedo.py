@@ -27,7 +27,7 @@ import functools
 
 import numpy as np
 
-from relight.colour import srgb_decode
+from relight.colour import luminance, srgb_decode
 
 PRIORS: tuple[str, ...] = ("hsv", "munsell", "mixture")
 DEFAULT_PRIOR = "hsv"
@@ -88,7 +88,7 @@ def texture_colours(rng: np.random.Generator, n: int, prior: str = "hsv") -> lis
         table = munsell_albedos()
         idx = rng.integers(0, len(table), n)
         if n > 1:  # contrast: colour 1 at least 2x lighter or darker than colour 0
-            lum = table @ np.array([0.2126, 0.7152, 0.0722])
+            lum = luminance(table)
             for _ in range(50):
                 a, b = lum[idx[0]], lum[idx[1]]
                 if max(a, b) >= 2.0 * min(a, b):

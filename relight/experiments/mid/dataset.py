@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from relight import frames
+from relight.colour import luminance
 from relight.errors import ConfigError, DatasetError, ProbeError
 from relight.experiments.mid import scene as scene_mid
 from relight.experiments.mid.scene import MidConfig
@@ -84,7 +85,7 @@ def masked_srgb8(srgb8: np.ndarray, mask: np.ndarray) -> np.ndarray:
 
 def exposure_of(image: np.ndarray) -> float:
     """Auto exposure: the factor that brings the median luminance to 0.18."""
-    lum = np.asarray(image, np.float64)[..., :3] @ np.array([0.2126, 0.7152, 0.0722])
+    lum = luminance(np.asarray(image, np.float64))
     med = float(np.median(lum))
     return scene_mid.EXPOSURE_KEY / med if med > 0 else 1.0
 

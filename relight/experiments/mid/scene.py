@@ -49,6 +49,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from relight import frames
+from relight.colour import luminance
 from relight.errors import ConfigError
 
 ROOM_HALF_M = (2.0, 3.5)           # half-widths of the room along x and y
@@ -569,10 +570,6 @@ def circle_overlap(r1: float, r2: float, d: float) -> float:
     return r1 * r1 * (a1 - math.sin(2 * a1) / 2) + r2 * r2 * (a2 - math.sin(2 * a2) / 2)
 
 
-def _luminance(rgb) -> np.ndarray:
-    return np.asarray(rgb, np.float64) @ np.array([0.2126, 0.7152, 0.0722])
-
-
 def dominant_direction(dirs: np.ndarray, weights_lum: np.ndarray, cap_deg: float = CAP_DEG) -> np.ndarray:
     """The centre of the brightest ``cap_deg`` cap of a radiance field sampled as
     directions ``(N, 3)`` with luminance x solid angle ``(N,)``: the cap (centred on a
@@ -612,9 +609,9 @@ def physical_truth(scene: MidScene, axis, chrome_faces: np.ndarray, gray_faces: 
         rgb_all = np.concatenate([rad * omega[:, None], power * np.asarray(scene.flash_rgb)[None]])
         out[which] = (d_all, rgb_all, power)
     d_all, rgb_all, power = out["chrome"]
-    world = dominant_direction(d_all, _luminance(rgb_all))
+    world = dominant_direction(d_all, luminance(rgb_all))
     total = rgb_all.sum(0)
-    direct_share = float(_luminance(power * np.asarray(scene.flash_rgb)) / max(_luminance(total), 1e-12))
+    direct_share = float(luminance(power * np.asarray(scene.flash_rgb)) / max(luminance(total), 1e-12))
     g_rgb = out["gray"][1].sum(0)
     g_rgb = g_rgb / np.linalg.norm(g_rgb)
     cam = frames.world_to_camera(world, scene.camera_tilt_deg)
