@@ -39,9 +39,9 @@ def test_preset_mid_records_and_masked_copies(tmp_path):
     assert (out / "images" / "0000_ref.png").is_file()             # the reference image
     from relight.imageio import read_srgb8
     from relight.experiments.mid.dataset import sphere_mask
-    from relight.experiments.mid.scene import MidConfig, sample_scene
+    from relight.experiments.mid.scene import MidConfig, sample_mid_scene
     mcfg = MidConfig.from_dict(TINY)
-    mask = sphere_mask(mcfg, sample_scene(mcfg, 0, 0))
+    mask = sphere_mask(mcfg, sample_mid_scene(mcfg, 0, 0))
     for iid in ("0000_00", "0000_04"):
         vis, masked = read_srgb8(out / "images" / f"{iid}.png")[0], read_srgb8(out / "masked" / f"{iid}.png")[0]
         assert vis.shape == masked.shape == (32, 32, 3)
@@ -185,8 +185,8 @@ def test_one_flash_colour_for_every_room_unless_asked():
     from relight.errors import ConfigError
     from relight.experiments.mid.dataset import mid_config
     from relight.experiments.mid import scene as sm
-    fixed = [sm.sample_scene(sm.MidConfig(), 3, i) for i in range(4)]
-    free = [sm.sample_scene(sm.MidConfig(flash_cct_k=None), 3, i) for i in range(4)]
+    fixed = [sm.sample_mid_scene(sm.MidConfig(), 3, i) for i in range(4)]
+    free = [sm.sample_mid_scene(sm.MidConfig(flash_cct_k=None), 3, i) for i in range(4)]
     want = np.asarray(cct_duv_to_rgb(sm.FLASH_CCT_K, 0.0))
     for a, b in zip(fixed, free):
         assert a.flash_cct_k == sm.FLASH_CCT_K
@@ -231,7 +231,7 @@ def test_reference_expectation_points_from_the_sphere_to_the_flash():
     cfg = sm.MidConfig()
     size = cfg.res * cfg.probe_zoom     # the probe photograph's camera, built here independently
     for index in range(6):
-        scene = sm.sample_scene(cfg, 2, index)
+        scene = sm.sample_mid_scene(cfg, 2, index)
         sphere = sm.probe_sphere(scene, "chrome")
         circle = outline_circle(Camera.from_fov(size, size, cfg.fov_deg), sphere)
         centre = np.asarray(sphere.centre)

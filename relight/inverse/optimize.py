@@ -338,7 +338,7 @@ def invert(spec: SceneSpec, image: np.ndarray, init=None, cfg: InvertConfig | No
                          stopped=run.stopped, trace=run.trace)
 
 
-def ad_loss_gradient(renderer: LightRenderer, target: np.ndarray, pan_rel_deg: float, tilt_deg: float,
+def shading_ad_loss_gradient(renderer: LightRenderer, target: np.ndarray, pan_rel_deg: float, tilt_deg: float,
                      r_m: float, spp: int, seed: int) -> tuple[float, np.ndarray]:
     """The alternative estimator, kept for the benchmark: Mitsuba's automatic gradient of
     the same loss per arc degree along (pan, tilt), through ``light.position`` (grad

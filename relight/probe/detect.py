@@ -47,7 +47,7 @@ DIFFUSE_MAX_RESIDUAL = 0.3     # diffuse: a shading model fits within 30% rms
 TRIM_FRACTION = 0.01           # ... leaving out the worst 1% of pixels (glints, hot pixels)
 
 
-def load_image(path: str, linear: bool = False) -> tuple[np.ndarray, float | None, str]:
+def read_probe_image(path: str, linear: bool = False) -> tuple[np.ndarray, float | None, str]:
     """Read an image as linear RGB ``(H, W, 3)`` float64.
 
     8- and 16-bit PNG/JPEG/TIFF are sRGB-decoded unless ``linear`` (16-bit files from
@@ -71,7 +71,7 @@ def load_image(path: str, linear: bool = False) -> tuple[np.ndarray, float | Non
 
 def load_mask(path: str) -> np.ndarray:
     """A mask image: True where the pixel is brighter than half of full scale."""
-    image, _, _ = load_image(path, linear=True)
+    image, _, _ = read_probe_image(path, linear=True)
     return image.mean(-1) > 0.5
 
 

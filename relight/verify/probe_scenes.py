@@ -99,7 +99,7 @@ def _sample_light(rng, chrome: Sphere, front: bool) -> np.ndarray:
     raise RuntimeError("could not sample a light direction")
 
 
-def sample_scene(seed: int, width: int = 640, height: int = 480, clutter: bool = False,
+def sample_probe_scene(seed: int, width: int = 640, height: int = 480, clutter: bool = False,
                  front: bool | None = None, fov_deg: float | None = None) -> ProbeScene:
     """A random validation scene: FOV uniform in :data:`FOV_RANGE_DEG`, the two spheres
     anywhere in the frame (chrome radius in :data:`RADIUS_PX_RANGE` pixels), the light
@@ -233,7 +233,7 @@ def remove_fireflies(image: np.ndarray, ratio: float = FIREFLY_RATIO) -> np.ndar
     return out
 
 
-def render_scene(scene: ProbeScene, spp: int = 64, seed: int = 0) -> np.ndarray:
+def render_probe_scene(scene: ProbeScene, spp: int = 64, seed: int = 0) -> np.ndarray:
     """Linear RGB ``(height, width, 3)`` float32 render of a validation scene, with
     isolated fireflies removed (:func:`remove_fireflies`)."""
     mi = backend.mitsuba()

@@ -180,11 +180,11 @@ def _write_card(out: str, seed: int, cfg: MidConfig, scenes: int, n_records: int
                                             f"radius) to the flash {scene_mid.FLASH_OFFSET_M} m above the camera"})
 
 
-def _render_scene(out: str, cfg: MidConfig, seed: int, index: int, stats: MidStats) -> tuple[list[dict], dict]:
+def _render_room(out: str, cfg: MidConfig, seed: int, index: int, stats: MidStats) -> tuple[list[dict], dict]:
     """Render, measure and write one scene's image files; returns its records and the
     scene file's content (written by the caller once the records are in)."""
     from relight.imageio import to_srgb8, write_exr, write_srgb8
-    scene = scene_mid.sample_scene(cfg, seed, index)
+    scene = scene_mid.sample_mid_scene(cfg, seed, index)
     renderer = scene_mid.MidRenderer(scene, cfg)
     mask = sphere_mask(cfg, scene)
     split = scene_mid.split_of_scene(index)
@@ -305,7 +305,7 @@ def generate_mid(out_dir: str | os.PathLike, scenes: int, seed: int = 0, cfg: Mi
         bar = tqdm(total=len(todo) * len(cfg.directions), unit="img", disable=not progress, desc="generate mid")
         with open(manifest_path, "ab") as manifest:
             for i in todo:
-                records, doc = _render_scene(out, cfg, seed, i, stats)
+                records, doc = _render_room(out, cfg, seed, i, stats)
                 manifest.write(b"".join((json.dumps(r) + "\n").encode() for r in records))
                 manifest.flush()
                 os.fsync(manifest.fileno())

@@ -214,7 +214,7 @@ def probe_sphere(scene: MidScene, which: str):
     return Sphere(tuple(camera_camera_frame(scene, c).tolist()), float(r))
 
 
-def sample_scene(cfg: MidConfig, seed: int, index: int) -> MidScene:
+def sample_mid_scene(cfg: MidConfig, seed: int, index: int) -> MidScene:
     """Scene ``index`` of a dataset of seed ``seed`` (depends on nothing else)."""
     from relight.colour import cct_duv_to_rgb
     from relight.scene.shapes import FAMILIES, sample_shape_params
