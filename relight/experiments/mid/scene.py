@@ -409,11 +409,8 @@ def _cube_face_matrix(centre, axis) -> np.ndarray:
     """Mitsuba sensor to_world (local +X left, +Y up, +Z forward) looking along ``axis``."""
     fwd = np.asarray(axis, np.float64)
     up = np.array([0.0, 0.0, 1.0]) if abs(fwd[2]) < 0.5 else np.array([0.0, 1.0, 0.0])
-    left = np.cross(up, fwd)
-    left /= np.linalg.norm(left)
-    up = np.cross(fwd, left)
     m = np.eye(4)
-    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = left, up, fwd, centre
+    m[:3, :3], m[:3, 3] = frames.sensor_frame(fwd, up), centre
     return m
 
 
