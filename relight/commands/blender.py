@@ -25,11 +25,12 @@ def add_commands(sub) -> None:
 
 def cmd_export_blender(args) -> int:
     from relight.scene.blender import BlenderError, blender_python, run_blender_module
-    from relight.scene.spec import SceneFileError, load_scene
+    from relight.errors import OutputError
+    from relight.scene.spec import load_scene
     if not args.out.lower().endswith(".blend"):
-        raise SceneFileError(f"--out must name a .blend file, got {args.out}")
+        raise OutputError(f"--out must name a .blend file, got {args.out}")
     if args.render is not None and not args.render.lower().endswith(".exr"):
-        raise SceneFileError(f"--render must name an .exr file (linear radiance), got {args.render}")
+        raise OutputError(f"--render must name an .exr file (linear radiance), got {args.render}")
     spec = load_scene(args.scene)  # bad scene files fail here, before any Blender start
     threads = int(os.environ["RELIGHT_THREADS"]) if os.environ.get("RELIGHT_THREADS") else None
     if importlib.util.find_spec("bpy") is not None:

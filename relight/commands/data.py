@@ -94,8 +94,8 @@ def cmd_generate(args) -> int:
         cfg = GeneratorConfig(**{k: v for k, v in overrides.items() if v is not None})
     check_outputs([args.out], [args.config, args.mesh_dir])
     if args.scheduler is not None and args.workers != 1:
-        from relight.dataset import DatasetError
-        raise DatasetError("--workers and --scheduler exclude each other (local:N gives N workers)")
+        from relight.errors import ConfigError
+        raise ConfigError("--workers and --scheduler exclude each other (local:N gives N workers)")
     stats = generate(args.out, args.count, seed=args.seed, cfg=cfg, workers=args.workers,
                      progress=not args.quiet, threads=args.threads, scheduler=args.scheduler)
     msg = f"{args.out}: {stats.written} images written, {stats.skipped} already there"

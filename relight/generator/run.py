@@ -197,9 +197,9 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
         raise DatasetError(f"workers must be >= 1, got {workers}")
     if threads is not None and threads < 1:
         raise DatasetError(f"threads must be >= 1, got {threads}")
-    if isinstance(scheduler, str):
-        from relight.engine import parse_scheduler
-        scheduler = parse_scheduler(scheduler)
+    if scheduler is not None:
+        from relight.engine import as_scheduler
+        scheduler = as_scheduler(scheduler)   # a bad one fails here, before the folder is touched
     out = os.fspath(out_dir)
     before = set(os.listdir(out)) if os.path.isdir(out) else set()
     card_path = os.path.join(out, CARD)

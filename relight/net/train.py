@@ -167,17 +167,17 @@ def _save_checkpoint(path: str, state: dict) -> None:
 
 
 def _load_checkpoint(path: str) -> dict:
-    """The checkpoint's state, checked; :class:`DatasetError` (one line) if it is empty,
+    """The checkpoint's state, checked; :class:`TrainingError` (one line) if it is empty,
     corrupt, truncated or not a relight checkpoint."""
     try:
         state = torch.load(path, weights_only=True)
     except Exception as exc:  # noqa: BLE001 - torch raises many types for bad files
         text = str(exc).splitlines()[0][:100] if str(exc) else type(exc).__name__
-        raise DatasetError(f"{path}: cannot read checkpoint ({text}); delete it to start over") from None
+        raise TrainingError(f"{path}: cannot read checkpoint ({text}); delete it to start over") from None
     keys = ("model", "optimiser", "scheduler", "epoch", "history", "best_val_loss", "settings", "torch_rng")
     if not isinstance(state, dict) or any(k not in state for k in keys) \
             or not isinstance(state["settings"], dict) or not isinstance(state["history"], list):
-        raise DatasetError(f"{path}: not a relight training checkpoint; delete it to start over")
+        raise TrainingError(f"{path}: not a relight training checkpoint; delete it to start over")
     return state
 
 
@@ -219,7 +219,7 @@ def distributed_rank_world() -> tuple[int, int]:
         world = int(os.environ.get("WORLD_SIZE", "1") or 1)
         rank = int(os.environ.get("RANK", "0") or 0)
     except ValueError:
-        raise DatasetError("RANK and WORLD_SIZE must be integers (set by torchrun)") from None
+        raise TrainingError("RANK and WORLD_SIZE must be integers (set by torchrun)") from None
     return (rank, world) if world > 1 else (0, 1)
 
 
@@ -354,8 +354,8 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, 
             start_epoch, rows, best = int(state["epoch"]), list(state["history"]), float(state["best_val_loss"])
             torch.set_rng_state(state["torch_rng"])
         except (RuntimeError, ValueError, TypeError, KeyError, AttributeError) as exc:
-            raise DatasetError(f"{ckpt_path}: checkpoint does not match this network "
-                               f"({str(exc).splitlines()[0][:100]}); delete it to start over") from None
+            raise TrainingError(f"{ckpt_path}: checkpoint does not match this network "
+                                f"({str(exc).splitlines()[0][:100]}); delete it to start over") from None
     settings = cfg.to_dict() | {"out_dir": out_dir, "parameters": count_parameters(model)}
     if init_model is not None:   # the starting point: the loaded model's val loss before any step
         if state is None:
