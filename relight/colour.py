@@ -29,6 +29,7 @@ __all__ = [
     "cct_duv_to_xy", "xy_to_rgb", "cct_duv_to_rgb", "rgb_to_cct_duv", "rgb_to_cct_duv_near_locus",
     "sample_light_colour", "srgb_encode", "srgb_decode",
     "REC709_LUMA", "luminance",
+    "CCT_METHOD", "SRGB_LINEAR_KNEE", "SRGB_ENCODED_KNEE",
 ]
 
 CCT_RANGE_K = (2500.0, 10000.0)  # sampling range of light CCTs, kelvin

@@ -35,6 +35,13 @@ it only when a scheduler is used.
 """
 from __future__ import annotations
 
+__all__ = [
+    "LOCAL_RE", "CONNECT_TIMEOUT_S", "MAX_SHARD", "SHARDS_PER_WORKER", "Scheduler", "parse_scheduler",
+    "as_scheduler", "local_worker_env", "client", "worker_threads", "dashboard_link", "n_workers", "shards",
+    "worker_cache", "TaskResult", "run_task", "worker_info", "run_shards", "EngineStats", "map_shards",
+    "describe", "announce", "map_ordered",
+]
+
 import contextlib
 import math
 import os

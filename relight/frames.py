@@ -33,6 +33,8 @@ __all__ = [
     "camera_position", "camera_to_world", "world_to_camera", "camera_to_world_vector",
     "mitsuba_sensor_to_world", "travel_direction", "tangent_basis", "Y_SIZE",
     "PHOTO_CAMERA_TILT_DEG",
+    "pan_from_rel", "tangent_move", "rotation_z", "frame_z_to", "perpendicular_pair", "sensor_frame",
+    "fold_over_zenith", "camera_to_pan_tilt",
 ]
 
 Y_SIZE = 7  # the paper's target vector: pan sin/cos, tilt sin/cos, r, g, b

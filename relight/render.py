@@ -14,6 +14,10 @@ The inverse renderer's automatic-differentiation paths (:mod:`relight.inverse`) 
 """
 from __future__ import annotations
 
+__all__ = [
+    "sensor", "render_scene", "exact_spp",
+]
+
 import numpy as np
 
 from relight import backend

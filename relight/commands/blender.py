@@ -1,6 +1,10 @@
 """``relight export-blender``: the same scene file in Blender Cycles (the paper's renderer)."""
 from __future__ import annotations
 
+__all__ = [
+    "add_commands", "cmd_export_blender",
+]
+
 import importlib.util
 import os
 

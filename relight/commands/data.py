@@ -1,6 +1,10 @@
 """``relight generate`` and ``relight render``."""
 from __future__ import annotations
 
+__all__ = [
+    "add_commands", "cmd_generate_mid", "cmd_generate", "cmd_render",
+]
+
 import os
 import sys
 

@@ -9,6 +9,10 @@ Re-running resumes the dataset and rewrites the reports.
 """
 from __future__ import annotations
 
+__all__ = [
+    "add_commands", "cmd_demo",
+]
+
 import os
 
 from relight.commands import argtypes as at

@@ -2,6 +2,10 @@
 :mod:`relight.verify.compare`, :mod:`relight.verify.report` and :mod:`relight.verify.figures`."""
 from __future__ import annotations
 
+__all__ = [
+    "add_commands", "cmd_compare", "cmd_spheres", "cmd_pole",
+]
+
 import os
 import sys
 

@@ -14,6 +14,12 @@ datasets through this module only.
 """
 from __future__ import annotations
 
+__all__ = [
+    "DATASET_FORMAT", "MANIFEST", "CARD", "MAX_COUNT", "SEED_LIMIT", "SPLITS", "SPLIT_CHOICES", "record_for",
+    "read_manifest", "check_record", "split_records", "read_card", "check_same_settings", "load_spec",
+    "safe_join",
+]
+
 import json
 import math
 import os
@@ -65,6 +71,29 @@ def read_manifest(dataset_dir: str | os.PathLike, repair: bool = False) -> list[
     are kept once -- and removed from the file when ``repair`` is true; the same id
     with different content is an error. Raises :class:`DatasetError` naming the file
     and line.
+
+    Args:
+        dataset_dir: the dataset folder (it holds ``manifest.jsonl``).
+        repair: cut a partial last line and repeated records off the file.
+
+    Returns:
+        One dict per image (``docs/conventions.md``): ``id``, relative ``image`` /
+        ``exr`` / ``scene`` paths, ``split``, ``light`` (``pan_deg``, ``tilt_deg`` in
+        degrees, linear unit-norm ``rgb``, ...), ``camera``, ``pan_rel_deg`` and ``y``
+        (the paper's 7-vector).
+
+    A manifest whose writer was killed in the middle of its second line:
+
+    >>> import json, os, shutil, tempfile
+    >>> folder = tempfile.mkdtemp()
+    >>> rec = {"id": "000000", "image": "images/000000.png", "split": "test", "pan_rel_deg": 90.0,
+    ...        "light": {"pan_deg": 90.0, "tilt_deg": 45.0, "rgb": [0.6, 0.6, 0.5]},
+    ...        "camera": {"pan_deg": 0.0, "tilt_deg": 30.0}, "y": [1.0, 0.0, 0.0, 1.0, 0.6, 0.6, 0.5]}
+    >>> with open(os.path.join(folder, MANIFEST), "w") as f:
+    ...     _ = f.write(json.dumps(rec) + "\\n" + '{"id": "000001", "ima')
+    >>> [(r["id"], r["light"]["pan_deg"]) for r in read_manifest(folder)]
+    [('000000', 90.0)]
+    >>> shutil.rmtree(folder)
     """
     path = os.path.join(os.fspath(dataset_dir), MANIFEST)
     if not os.path.isfile(path):

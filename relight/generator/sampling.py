@@ -16,6 +16,11 @@ image's spec depends only on (dataset seed, image index) and the config.
 """
 from __future__ import annotations
 
+__all__ = [
+    "read_config_file", "GeneratorConfig", "LEGACY_CONFIG", "mesh_files", "image_rng", "split_of",
+    "sample_scene",
+]
+
 import dataclasses
 import json
 import math

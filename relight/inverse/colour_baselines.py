@@ -25,6 +25,12 @@ in :func:`write_colour_predictions`; :func:`read_colour_predictions` reads it to
 """
 from __future__ import annotations
 
+__all__ = [
+    "SHADES_OF_GRAY_P", "GRAY_EDGE_P", "GRAY_EDGE_SIGMA_PX", "ColourBaselineError", "minkowski_mean",
+    "gray_world", "white_patch", "shades_of_gray", "gray_edge", "METHODS", "estimate", "estimate_jobs",
+    "dataset_colour_errors", "write_colour_predictions", "read_colour_predictions",
+]
+
 import math
 
 import numpy as np

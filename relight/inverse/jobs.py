@@ -3,6 +3,10 @@ their starting directions (grid, the network, a predictions file), the runs, and
 per-iteration trace file. ``relight invert`` and ``relight baseline`` call these."""
 from __future__ import annotations
 
+__all__ = [
+    "Job", "dataset_jobs", "network_starts", "file_starts", "invert_jobs", "TRACE_FIELDS", "write_trace_csv",
+]
+
 import csv
 from dataclasses import dataclass
 

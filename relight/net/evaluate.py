@@ -15,6 +15,11 @@ Report folder contents:
 """
 from __future__ import annotations
 
+__all__ = [
+    "COLOUR_STATS", "run_model", "decode_outputs", "extra_fields", "cct_errors", "errors_from_y",
+    "run_model_on_engine", "evaluate",
+]
+
 import csv
 import json
 import os

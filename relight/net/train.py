@@ -26,6 +26,11 @@ process (no ``torchrun``, or one rank) is exactly the single-process path.
 """
 from __future__ import annotations
 
+__all__ = [
+    "CHECKPOINT", "SETTINGS", "LOG", "LOG_FIELDS", "TrainConfig", "net_config", "plot_curves",
+    "distributed_rank_world", "train", "RESOURCE_KEYS",
+]
+
 import csv
 import json
 import math

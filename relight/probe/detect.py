@@ -17,6 +17,15 @@ hard terminator).
 """
 from __future__ import annotations
 
+__all__ = [
+    "EDGE_SIGMA_PX", "EDGE_ANGLES", "EDGE_MIN_FRACTION", "REJECT_ROUNDS", "REJECT_SIGMAS", "REJECT_MIN_PX",
+    "EDGE_INLIER_PX", "SUPPORT_BAND_FRACTION", "MIN_EDGE_SUPPORT", "MIN_RADIUS_FRACTION",
+    "MAX_RADIUS_FRACTION", "MAX_CANDIDATES", "CHROME_MIN_CONTRAST", "CHROME_MIN_BLOB_PX",
+    "CHROME_MAX_BLOB_FRACTION", "CHROME_MIN_EXCESS", "DIFFUSE_MAX_RESIDUAL", "TRIM_FRACTION",
+    "read_probe_image", "load_mask", "edge_points", "refine_sphere", "sphere_features", "hough_circles",
+    "find_spheres", "is_chrome", "is_diffuse", "pick_sphere",
+]
+
 import math
 import os
 

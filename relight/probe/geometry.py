@@ -25,6 +25,15 @@ gives sub-pixel localisation, clipped or not.
 """
 from __future__ import annotations
 
+__all__ = [
+    "HIGHLIGHT_FRACTION", "TIE_FRACTION", "MAX_LIGHT_SPREAD_DEG", "CORE_RIM_PX", "MERGED_FRACTION",
+    "RIM_EXCLUDE_PX", "MAX_RIM_ANGLE_DEG", "LIT_FRACTION", "DIFFUSE_RIM_FRACTION", "ORTHO_DEPTH",
+    "OUTLINE_LOSS_SCALE_PX", "Camera", "Sphere", "sphere_from_cone", "sphere_from_circle", "fit_sphere",
+    "mask_outline_points", "sphere_from_mask", "outline_circle", "outline_polygon", "bounding_box", "surface",
+    "reflected_direction", "predict_highlight", "Highlight", "sphere_pixels", "locate_highlight",
+    "diffuse_light",
+]
+
 import math
 from dataclasses import dataclass, field
 

@@ -3,6 +3,10 @@ overlay) out. See :mod:`relight.probe.geometry` for the geometry and
 :mod:`relight.probe.detect` for finding the spheres."""
 from __future__ import annotations
 
+__all__ = [
+    "ProbeConfig", "ProbeResult", "locate_sphere", "run_probe", "write_qa",
+]
+
 import math
 from dataclasses import dataclass
 

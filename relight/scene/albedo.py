@@ -23,6 +23,13 @@ All albedos are linear RGB in [ALBEDO_MIN, ALBEDO_MAX] (textures) or [0, 1]
 """
 from __future__ import annotations
 
+__all__ = [
+    "PRIORS", "DEFAULT_PRIOR", "ALBEDO_MIN", "ALBEDO_MAX", "OBJECT_RANGE", "MUNSELL_Y_RANGE",
+    "munsell_albedos", "hsv_texture_albedos", "texture_colours", "object_reflectance", "box_direction_logpdf",
+    "CHROMA_BINS", "chromaticity", "chromaticity_log_density", "scaled_chromaticity_logpdf",
+    "shared_hue_logpdf", "posterior_mean_light", "ideal_observer_errors", "scene_prior",
+]
+
 import functools
 
 import numpy as np

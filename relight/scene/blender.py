@@ -25,6 +25,13 @@ environment. Only numpy-only parts of relight are imported on the bpy side.
 """
 from __future__ import annotations
 
+__all__ = [
+    "BLENDER_VENV_ENV", "DEFAULT_BLENDER_VENV", "INSTALL_HINT", "SAMPLING_PATTERN", "DIFFERENCES",
+    "point_light_power", "point_light_intensity", "cycles_max_bounces", "rectangle_quad", "export_blender",
+    "render_cycles", "blender_python", "run_blender_module", "CyclesWorker", "main", "export_and_render",
+    "relative_rmse",
+]
+
 import contextlib
 import json
 import math

@@ -20,6 +20,10 @@ two, ``multijitter`` a product of two close integers).
 """
 from __future__ import annotations
 
+__all__ = [
+    "DEFAULT_SAMPLER", "DEFAULT_TARGET_RMSE", "CALIBRATION", "relative_rmse", "spp_for_target",
+]
+
 import numpy as np
 
 DEFAULT_SAMPLER = "multijitter"

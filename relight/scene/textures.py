@@ -20,6 +20,10 @@ Conventions
 """
 from __future__ import annotations
 
+__all__ = [
+    "KINDS", "MOSAIC", "ALL_KINDS", "BACKGROUNDS", "MOSAIC_CELLS", "sample_texture_params", "make_texture",
+]
+
 import math
 
 import numpy as np

@@ -22,6 +22,12 @@ the entry, exit 2 in the CLI) unless ``skip_bad`` collects them instead.
 """
 from __future__ import annotations
 
+__all__ = [
+    "NOISE_SEED_OFFSET", "STRENGTH_NOTE", "IMAGE_METRICS", "CompareError", "Light", "ImageComparison",
+    "Comparison", "resolve_dataset_dir", "gt_light", "Task", "prepare", "compare_one", "BAD_INPUT",
+    "compare_predictions", "moved_light_predictions",
+]
+
 import os
 import time
 from dataclasses import dataclass, field
@@ -203,8 +209,27 @@ def compare_predictions(predictions_path: str | os.PathLike, data_dir: str | Non
         scheduler: render on Dask (``local:N`` or an address, :mod:`relight.engine`):
             shards of images render in worker processes, the results come back here;
             the same Comparison as without it.
+    Returns:
+        A :class:`Comparison`: one :class:`ImageComparison` per compared entry, with the
+        four light errors in degrees (pan, tilt, direction, colour), the image errors of
+        the re-render (b) against the dataset's EXR (a) (RMSE, PSNR in dB, SSIM), the
+        render noise floor, and both linear ``(res, res, 3)`` float32 images.
+
     Raises:
         CompareError / PredictionsError naming the entry (unless ``skip_bad``).
+
+    Predictions equal to the truth re-render the dataset's image exactly (same seed):
+
+    >>> import relight, tempfile
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> data, pred = os.path.join(tmp.name, "data"), os.path.join(tmp.name, "pred.json")
+    >>> _ = relight.generate(data, 1, seed=2, cfg=relight.GeneratorConfig(res=16, spp=4), progress=False)
+    >>> relight.write_predictions(pred, [{"id": r["id"], "pan_deg": r["pan_rel_deg"], "tilt_deg": r["light"]["tilt_deg"],
+    ...                           "rgb": r["light"]["rgb"]} for r in read_manifest(data)], dataset=data)
+    >>> item = compare_predictions(pred, progress=False).items[0]
+    >>> item.original.shape, item.light_errors_deg["direction"], item.image_errors["rmse"]
+    ((16, 16, 3), 0.0, 0.0)
+    >>> tmp.cleanup()
     """
     from relight import backend
     from relight.scene.build import SceneBuilder

@@ -16,6 +16,11 @@ images (Rec. 709 weights), on a diverging map whose limits are symmetric.
 """
 from __future__ import annotations
 
+__all__ = [
+    "DIFF_CMAP", "DIFF_PERCENTILE", "PANEL_DPI", "FIG3_DPI", "MAX_COLUMNS", "luminance_difference",
+    "diff_limit", "save_panel", "pick_columns", "save_figure3", "save_spheres_figure", "pole_overlay",
+]
+
 import os
 
 import numpy as np

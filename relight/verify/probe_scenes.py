@@ -20,6 +20,13 @@ sphere is a bright patch that is not the light.
 """
 from __future__ import annotations
 
+__all__ = [
+    "LIGHT_ANGULAR_RADIUS_DEG", "LIGHT_DISTANCE_RADII", "LIGHT_IRRADIANCE", "GRAY_ALBEDO", "SKY_RADIANCE",
+    "GROUND_ALBEDO", "WINDOW_RADIANCE", "MAX_VIEW_LIGHT_ANGLE_DEG", "MIN_LIGHT_ELEVATION_DEG", "FOV_RANGE_DEG",
+    "RADIUS_PX_RANGE", "FIREFLY_RATIO", "DEPTH_RANGE", "ProbeScene", "sample_probe_scene", "remove_fireflies",
+    "render_probe_scene",
+]
+
 import math
 from dataclasses import dataclass
 

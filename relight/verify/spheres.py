@@ -16,6 +16,13 @@ colour, camera pose) through ``mi.traverse``.
 """
 from __future__ import annotations
 
+__all__ = [
+    "SUN_IRRADIANCE", "SKY_RADIANCE", "SKY_SAMPLING_WEIGHT", "DIFFUSE_ALBEDO", "SPECULAR_ALPHA",
+    "SPHERE_CAMERA_R_M", "SPHERE_FOV_DEG", "POLE_HEIGHT_M", "POLE_RADIUS_M", "GROUND_RADIUS_M",
+    "POLE_CAMERA_R_M", "POLE_FOV_DEG", "GROUND_ALBEDO", "POLE_ALBEDO", "DEFAULT_SPP", "KINDS", "render_probe",
+    "sphere_pair", "pole_inset", "overlay_pole", "gt_from_entry", "sphere_rows",
+]
+
 import math
 import os
 

@@ -28,6 +28,14 @@ ground truths.
 """
 from __future__ import annotations
 
+__all__ = [
+    "MID_FORMAT", "REF_ELEVATION_DEG", "MASK_DILATE_PX", "MidStats", "sphere_mask", "masked_srgb8",
+    "exposure_of", "run_procedure", "chrome_distance_m", "expected_reference", "reference_correction",
+    "corrected", "mid_config", "generate_mid", "PAPER_TABLE4", "PAPER_TABLE5", "TABLE_METRICS", "is_front",
+    "truth_arrays", "errors_against", "table4_rows", "table5_rows", "format_table4", "format_table5",
+    "predict_split", "score", "procedure_vs_physical",
+]
+
 import json
 import math
 import os

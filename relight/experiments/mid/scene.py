@@ -43,6 +43,16 @@ is not the flash's direction.
 """
 from __future__ import annotations
 
+__all__ = [
+    "ROOM_HALF_M", "CEILING_M", "CAMERA_HEIGHT_M", "CAMERA_TILT_DEG", "CAMERA_WALL_GAP_M", "FOV_DEG",
+    "GRAY_ALBEDO", "SPHERE_RADIUS_FRACTION", "SPHERE_DISTANCE_M", "FLASH_OFFSET_M", "FLASH_RADIUS_M",
+    "SNOOT_LENGTH_M", "SNOOT_RADIUS_M", "FLASH_CCT_K", "FLASH_INTENSITY_W_SR", "CUBE_RES", "CAP_DEG",
+    "EXPOSURE_KEY", "REFERENCE", "FLASH_DIRECTIONS", "MidConfig", "split_of_scene", "MidScene", "flash_axis",
+    "reference_axis", "camera_camera_frame", "probe_camera", "probe_sphere", "sample_mid_scene",
+    "flash_radiance", "backend_mi", "CUBE_AXES", "cube_directions", "MidRenderer", "circle_overlap",
+    "dominant_direction", "physical_truth",
+]
+
 import math
 from dataclasses import asdict, dataclass, field
 
