@@ -364,6 +364,6 @@ def _run_engine(scheduler, threads, out, cfg, seed, todo, append, stats, progres
     run = engine.EngineStats()
     try:
         engine.map_shards(scheduler, _render_shard, (out, cfg, seed), todo, on_result,
-                          threads=threads, progress=progress, stats=run)
+                          engine.ShardPlan(threads=threads, progress=progress), stats=run)
     finally:
         stats.tasks, stats.task_s, stats.startup_s = run.tasks, run.task_s, run.startup_s

@@ -142,8 +142,8 @@ def estimate_jobs(name: str, jobs: list, progress: bool = True, scheduler=None) 
         return [_entry(name, *p) for p in tqdm(paths, desc=name, unit="img",
                                                disable=not progress or len(paths) < 50)]
     from relight import engine
-    return engine.map_ordered(scheduler, _estimate_shard, (name, paths), len(paths), name, progress,
-                              bar=len(paths) >= 50, mitsuba=False)
+    return engine.map_ordered(scheduler, _estimate_shard, (name, paths), len(paths), name,
+                              engine.ShardPlan(mitsuba=False, progress=progress), bar=len(paths) >= 50)
 
 
 def dataset_colour_errors(entries: list[dict], data_dir: str) -> np.ndarray:

@@ -307,7 +307,7 @@ def _compare_on_engine(scheduler, tasks: list[Task], noise_seed_offset: int, pro
     """The outcomes of ``tasks`` rendered on Dask, gathered here in task order."""
     from relight import engine
     return engine.map_ordered(scheduler, _compare_shard, (tasks, noise_seed_offset), len(tasks),
-                              "compare", progress)
+                              "compare", engine.ShardPlan(progress=progress))
 
 
 def moved_light_predictions(dataset_dir: str | os.PathLike, spread_deg: float = 30.0,
