@@ -289,11 +289,10 @@ def _generate_locked(out: str, count: int, seed: int, cfg: GeneratorConfig, work
     workers = min(workers, len(todo))
     user_threads = threads
     threads = threads or max(1, cores // workers)
-    if scheduler is not None:
-        workers = 2   # the client renders nothing; it checks meshes with one thread
-    if workers == 1 or cfg.mesh_dir:
+    renders_here = scheduler is None and workers == 1   # else workers render; this process checks meshes
+    if renders_here or cfg.mesh_dir:
         from relight import backend
-        backend.init(threads=threads if workers == 1 else 1)
+        backend.init(threads=threads if renders_here else 1)
         _check_meshes(cfg)   # a bad mesh fails here, before the manifest is touched
     bar = tqdm(total=len(todo), unit="img", disable=not progress, desc="generate", smoothing=0.1)
     t_start = time.perf_counter()
