@@ -3,4 +3,4 @@
 * :mod:`relight.experiments.mid`: the paper's Experiment 2 on MID-like synthetic rooms
   (``relight generate --preset mid``; Tables 4-5).
 """
-__all__: list[str] = []
+__all__ = ["mid"]

@@ -9,4 +9,4 @@
 The format of what it writes (manifest, card, splits, readers) is :mod:`relight.dataset`;
 the stages read datasets through that and never import the generator.
 """
-__all__: list[str] = []
+__all__ = ["run", "sampling"]

@@ -6,4 +6,4 @@
   the sphere procedure's ground truth with the reference-image correction, and the
   paper's Tables 4-5.
 """
-__all__: list[str] = []
+__all__ = ["dataset", "scene"]
