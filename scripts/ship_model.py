@@ -467,6 +467,7 @@ dataset made by `relight generate`. It is the default model of `relight predict`
   {w['pan']:g} x MSE(pan pair) + {w['tilt']:g} x MSE(tilt pair) + {w['colour']:g} x mean RGB angular error (radians).
 - {f'Stage {len(stages) + 1}: ' if stages else ''}{meta['trained_epochs_total']} epochs in {meta['train_time_s_all_epochs'] / 60:.0f} min on the 2-core CPU; best val
   loss at epoch {meta['best_epoch']} ({meta['train_time_s_to_best'] / 60:.0f} min). Learning-rate drops: {', '.join(drops) or 'none'}.{stopped}
+- The training history, stage by stage and epoch by epoch: [docs/training.md](../../docs/training.md).
 
 ## Test results (fresh test set, never used for training)
 `{test_cmd}`{(' (' + test_note + ')') if test_note else ''}
