@@ -30,8 +30,8 @@ On a machine with CUDA GPUs, ``local:N`` pins worker ``i`` to GPU ``i mod G``
 (``CUDA_VISIBLE_DEVICES``): one worker per GPU with ``local:G``.
 Workers must see the input and output folders at the same paths (a shared file system).
 
-Dask is an optional dependency (``pip install relight[dask]``); this module imports
-it only when a scheduler is used.
+Dask (``dask[distributed]``, a dependency of relight) is imported only when a
+scheduler is used: ``--scheduler``, or ``generate --workers N`` (``local:N``).
 """
 from __future__ import annotations
 
@@ -102,8 +102,8 @@ def _import_distributed():
     try:
         import distributed
     except ImportError:
-        raise EngineError("--scheduler needs Dask: pip install 'relight[dask]' "
-                          "(or 'dask[distributed]')") from None
+        raise EngineError("--workers N and --scheduler need Dask: pip install 'dask[distributed]' "
+                          "(a dependency of relight)") from None
     return distributed
 
 

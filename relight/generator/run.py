@@ -18,7 +18,9 @@ Re-running the same command resumes: image ``i`` depends only on (seed, i).
 One writer per dataset: :func:`generate` holds an OS lock on ``FOLDER/.relight.lock``
 for the whole run (a second writer gets :class:`~relight.fileio.OutputError`), so it
 can remove the temporary files that killed runs left (readers skip such names).
-Worker processes die with their parent (a parent-death signal and a watched pipe).
+Several render processes (``workers`` or a ``scheduler``) run on the Dask engine
+(:mod:`relight.engine`): their workers die with this process, and only this process
+appends records.
 A run that fails before finishing any image leaves the folder as it was.
 """
 from __future__ import annotations
@@ -29,12 +31,8 @@ __all__ = [
 
 import contextlib
 import json
-import multiprocessing as mp
 import os
 import shutil
-import signal
-import sys
-import threading
 import time
 from dataclasses import dataclass
 
@@ -142,40 +140,6 @@ def _pipeline(out: str, cfg: GeneratorConfig, seed: int, indices: list[int], on_
             f.result()
 
 
-def _die_with_parent(parent_pid: int, watch) -> None:
-    """Make this worker process end when its parent ends, however the parent ends: a
-    parent-death signal (Linux) and a thread that exits when the pipe from the parent
-    closes (everywhere)."""
-    if sys.platform.startswith("linux"):
-        try:
-            import ctypes
-            libc = ctypes.CDLL(None, use_errno=True)
-            libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)   # PR_SET_PDEATHSIG = 1
-        except (OSError, AttributeError):
-            pass
-    if os.getppid() != parent_pid:   # the parent died before prctl took effect
-        os._exit(3)
-
-    def watch_parent():
-        try:
-            watch.recv()   # the parent never sends: returns (EOFError) when it dies
-        except (EOFError, OSError):
-            pass
-        os._exit(3)
-    threading.Thread(target=watch_parent, name="parent-watch", daemon=True).start()
-
-
-def _worker(out, cfg, seed, indices, threads, queue, parent_pid=None, watch=None):
-    from relight import backend
-    if watch is not None:
-        _die_with_parent(parent_pid, watch)
-    try:
-        backend.init(threads=threads)
-        _pipeline(out, cfg, seed, indices, lambda record, render_s: queue.put(("ok", record, render_s)))
-    except BaseException as exc:  # report to the parent, which stops cleanly
-        queue.put(("error", f"{type(exc).__name__}: {exc}", 0.0))
-
-
 def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
              cfg: GeneratorConfig | None = None, workers: int = 1, progress: bool = True,
              threads: int | None = None, scheduler=None) -> GenerateStats:
@@ -186,7 +150,8 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
         count: total number of images wanted; existing records count.
         seed: dataset seed; image ``i`` depends only on (seed, i) and ``cfg``.
         cfg: generator settings (default :class:`GeneratorConfig`).
-        workers: processes rendering in parallel (each gets cores / workers threads).
+        workers: processes rendering in parallel (each gets cores / workers threads): more
+            than one runs on the engine's ``local:N`` (:mod:`relight.engine`, needs Dask).
         progress: show a progress bar (images/s) on stderr.
         threads: Dr.Jit threads per process (default: cores / workers).
         scheduler: run on Dask instead (:class:`relight.engine.Scheduler` or its text,
@@ -287,9 +252,12 @@ def _generate_locked(out: str, count: int, seed: int, cfg: GeneratorConfig, work
         return stats
     cores = os.cpu_count() or 1
     workers = min(workers, len(todo))
+    if scheduler is None and workers > 1:   # N render processes: the engine's local:N
+        from relight.engine import Scheduler
+        scheduler = Scheduler(local=workers)
     user_threads = threads
     threads = threads or max(1, cores // workers)
-    renders_here = scheduler is None and workers == 1   # else workers render; this process checks meshes
+    renders_here = scheduler is None   # else workers render; this process checks meshes
     if renders_here or cfg.mesh_dir:
         from relight import backend
         backend.init(threads=threads if renders_here else 1)
@@ -307,29 +275,8 @@ def _generate_locked(out: str, count: int, seed: int, cfg: GeneratorConfig, work
 
         if scheduler is not None:
             _run_engine(scheduler, user_threads, out, cfg, seed, todo, append, stats, progress)
-        elif workers == 1:
-            _pipeline(out, cfg, seed, todo, append)
         else:
-            ctx = mp.get_context("spawn")
-            queue = ctx.Queue()
-            watch, keep_alive = ctx.Pipe(duplex=False)   # workers watch it; closes when we die
-            procs = [ctx.Process(target=_worker, args=(out, cfg, seed, todo[w::workers], threads, queue,
-                                                       os.getpid(), watch),
-                                 daemon=True) for w in range(workers)]
-            for p in procs:
-                p.start()
-            try:
-                for _ in range(len(todo)):
-                    status, payload, render_s = queue.get()
-                    if status == "error":
-                        raise DatasetError(f"a worker failed: {payload}")
-                    append(payload, render_s)
-            finally:
-                for p in procs:
-                    if p.is_alive():
-                        p.terminate()
-                    p.join()
-                keep_alive.close()
+            _pipeline(out, cfg, seed, todo, append)
     stats.total_s = time.perf_counter() - t_start
     bar.close()
     return stats
