@@ -26,10 +26,11 @@ def main() -> None:
     args = ap.parse_args()
 
     from relight import backend
-    from relight.dataset import generate, read_manifest
+    from relight.dataset import read_manifest
+    from relight.generator.run import generate
     from relight.predictions import write_predictions
     from relight.scene.build import SceneBuilder
-    from relight.scene.sampling import GeneratorConfig
+    from relight.generator.sampling import GeneratorConfig
     from relight.verify.compare import compare_predictions, moved_light_predictions
     from relight.verify.report import write_report
 

@@ -39,7 +39,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
-from relight import blender  # noqa: E402
+from relight.scene import blender  # noqa: E402
 
 SCENE_SEED = 4242
 LADDER_SPP = (4, 16, 64, 256)   # exact for every Mitsuba sampler but "orthogonal"
@@ -198,7 +198,7 @@ def main(argv: list[str] | None = None) -> int:
     if blender.blender_python() is None:
         print("bench_cycles: skipped (no Blender environment; run scripts/setup_blender.sh)")
         return 0
-    from relight.scene.sampling import GeneratorConfig, sample_scene
+    from relight.generator.sampling import GeneratorConfig, sample_scene
     cache = os.path.expanduser(args.cache)
     os.makedirs(cache, exist_ok=True)
     targets = [float(t) for t in args.targets.split(",")]

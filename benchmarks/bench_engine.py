@@ -33,8 +33,8 @@ import time
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from relight.dataset import generate  # noqa: E402
-from relight.scene.sampling import GeneratorConfig  # noqa: E402
+from relight.generator.run import generate  # noqa: E402
+from relight.generator.sampling import GeneratorConfig  # noqa: E402
 
 SEED = 3
 
@@ -56,7 +56,7 @@ def same_outputs(a: str, b: str) -> bool:
 def overhead_ms(cfg: GeneratorConfig, out: str, n_tasks: int) -> tuple[float, float]:
     """(engine ms per task, mean render ms per task) on a warm local:1, one image a task."""
     from relight import engine
-    from relight.dataset import _render_shard
+    from relight.generator.run import _render_shard
     context = (out, cfg, SEED)
     with engine.client(engine.Scheduler(local=1)) as (c, threads):
         engine.run_shards(c, _render_shard, context, [[0]], lambda part, r: None, threads)   # warm-up

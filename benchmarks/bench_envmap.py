@@ -36,8 +36,9 @@ GRAZING_DEG = 5.0   # a light this close above the walls' top edge: the walls' p
 
 
 def make_dataset(path: str, n: int, res: int, seed: int) -> str:
-    from relight.dataset import generate, read_manifest
-    from relight.scene.sampling import GeneratorConfig
+    from relight.dataset import read_manifest
+    from relight.generator.run import generate
+    from relight.generator.sampling import GeneratorConfig
     if os.path.isfile(os.path.join(path, "manifest.jsonl")) and len(read_manifest(path)) >= n:
         return path
     print(f"generating {n} images of {res} px in {path} (relight generate --count {n} --res {res} "

@@ -10,7 +10,7 @@ run. It prints the table, the spp each sampler needs for the target, and the
 Speed, measured in one run on the same scenes (after a warm-up that loads every room
 structure once, so both ways run with compiled kernels), at the default noise target:
 
-* template way: ``relight.dataset.generate`` (one loaded scene per structure, updated
+* template way: ``relight.generator.run.generate`` (one loaded scene per structure, updated
   through ``mi.traverse``), images/s and total time / time inside ``mi.render``;
 * naive way: ``mi.load_dict`` a new scene for every image (``build_naive``), same
   rendering and file writing;
@@ -37,11 +37,11 @@ import dataclasses  # noqa: E402
 import numpy as np  # noqa: E402
 
 from relight import backend  # noqa: E402
-from relight.dataset import _write_card, generate  # noqa: E402
+from relight.generator.run import _write_card, generate  # noqa: E402
 from relight.imageio import write_exr, write_png  # noqa: E402
 from relight.scene import noise  # noqa: E402
 from relight.scene.build import SceneBuilder, build_naive  # noqa: E402
-from relight.scene.sampling import GeneratorConfig, sample_scene  # noqa: E402
+from relight.generator.sampling import GeneratorConfig, sample_scene  # noqa: E402
 
 # Sample counts each Mitsuba sampler takes without rounding them.
 EXACT_SPP = {

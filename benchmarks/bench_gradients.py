@@ -45,7 +45,7 @@ TARGETS = "AD+visibility: angle <= 3 deg, ratio 0.9-1.1 (median, large shadows),
 def make_scenes(n_per_group: int, res: int, spp: int, seed: int):
     """``[(group, spec, linear image)]``: generated scenes rendered at ``res`` px."""
     from relight.scene.build import SceneBuilder
-    from relight.scene.sampling import GeneratorConfig, sample_scene
+    from relight.generator.sampling import GeneratorConfig, sample_scene
     out = []
     for g, (name, overrides) in enumerate(GROUPS.items()):
         cfg = GeneratorConfig(res=res, spp=spp, **overrides)
@@ -60,7 +60,7 @@ def estimators():
     """name -> function(renderer, target_at, pan, tilt, r) -> (loss, grad (2,))."""
     from relight.inverse import ad
     from relight.inverse.objective import loss_gradient
-    from relight.inverse.optimize import DEFAULT_LEVELS, ad_loss_gradient
+    from relight.inverse.optimize import DEFAULT_LEVELS, shading_ad_loss_gradient
     l0, l1 = DEFAULT_LEVELS
     shading = ad.ADSettings(visibility=False)
     return {
@@ -69,7 +69,7 @@ def estimators():
         "FD L1 (64px, 32spp, h=0.5)":
             lambda rd, t, p, q, r: loss_gradient(rd, t(64), p, q, r, l1.spp, 2, l1.fd_step_deg),
         "AD Mitsuba path, shading only (64px, 32spp)":
-            lambda rd, t, p, q, r: ad_loss_gradient(rd, t(64), p, q, r, 32, 2),
+            lambda rd, t, p, q, r: shading_ad_loss_gradient(rd, t(64), p, q, r, 32, 2),
         "AD ours, shading only (64px, 32spp)":
             lambda rd, t, p, q, r: ad.ad_loss_gradient(rd, t(64), p, q, r, 32, 2, settings=shading),
         "AD ours + shadow edges (32px, 8spp)":

@@ -41,8 +41,9 @@ DATA_SEED, DATA_SPP, DATA_MIN_COUNT = 3, 32, 20
 def ensure_data(folder: str, n: int) -> None:
     """Generate the benchmark's dataset in ``folder`` when it is missing or has fewer
     than ``n`` images (resumes an unfinished one); one line says so."""
-    from relight.dataset import MANIFEST, generate, read_manifest
-    from relight.scene.sampling import GeneratorConfig
+    from relight.dataset import MANIFEST, read_manifest
+    from relight.generator.run import generate
+    from relight.generator.sampling import GeneratorConfig
     have = len(read_manifest(folder)) if os.path.isfile(os.path.join(folder, MANIFEST)) else 0
     if have >= n:
         return
@@ -102,7 +103,7 @@ def gradient_study(recs, data, n):
     from relight.dataset import load_spec, safe_join
     from relight.frames import tangent_move
     from relight.inverse.objective import LightRenderer, downsample, loss_gradient
-    from relight.inverse.optimize import DEFAULT_LEVELS, ad_loss_gradient
+    from relight.inverse.optimize import DEFAULT_LEVELS, shading_ad_loss_gradient
     from relight.imageio import read_image
     from relight.scene.build import SceneBuilder
     rows = {"FD L0 (32px, 8spp, h=2)": [], "FD L1 (64px, 32spp, h=0.5)": [],
@@ -123,7 +124,7 @@ def gradient_study(recs, data, n):
                                                              DEFAULT_LEVELS[0].spp, 1, DEFAULT_LEVELS[0].fd_step_deg),
             "FD L1 (64px, 32spp, h=0.5)": lambda: loss_gradient(renderer, downsample(image, 64), pan, tilt, r,
                                                                 DEFAULT_LEVELS[1].spp, 2, DEFAULT_LEVELS[1].fd_step_deg),
-            "AD shading-only (64px, 32spp)": lambda: ad_loss_gradient(renderer, downsample(image, 64), pan,
+            "AD shading-only (64px, 32spp)": lambda: shading_ad_loss_gradient(renderer, downsample(image, 64), pan,
                                                                       tilt, r, 32, 2),
         }
         for name, fn in runs.items():

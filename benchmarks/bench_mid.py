@@ -48,13 +48,13 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     from relight import backend
-    from relight import mid
+    from relight.experiments.mid import dataset as mid
     from relight.net.io import SHIPPED_MODEL, load_model_file
     from relight.net.train import TrainConfig, train
     data = os.path.join(args.out, "data")
     t0 = time.perf_counter()
     backend.init(threads=args.threads)
-    from relight.scene.mid import MidConfig
+    from relight.experiments.mid.scene import MidConfig
     stats = mid.generate_mid(data, args.scenes, seed=args.seed, cfg=MidConfig(snoot_m=args.snoot), progress=True,
                              threads=args.threads)
     t_gen = time.perf_counter() - t0

@@ -58,7 +58,7 @@ def _constant_guess(truth: np.ndarray) -> dict:
 def ensure_devset(root: str, n: int) -> tuple[str | None, str | None, str | None]:
     """The Mitsuba dev set, its Cycles twin and the Cycles twin through Blender's default AgX
     view transform, under ``root`` (made when missing and possible)."""
-    from relight.blender import blender_python
+    from relight.scene.blender import blender_python
     mitsuba, cycles = os.path.join(root, "devset-mitsuba"), os.path.join(root, "devset-cycles")
     relight_cli = [sys.executable, "-m", "relight"]
     if not os.path.exists(os.path.join(mitsuba, "manifest.jsonl")) or \

@@ -50,10 +50,10 @@ def _renders(args, folder: str, rows: list, qa_dir: str | None) -> None:
 
     jobs = [(seed, clutter) for clutter in (False, True) for seed in range(args.seed, args.seed + args.count)]
     for seed, clutter in tqdm(jobs, desc="validation renders", unit="scene"):
-        scene = probe_scenes.sample_scene(seed, clutter=clutter, front=bool(seed % 2 == 0))
+        scene = probe_scenes.sample_probe_scene(seed, clutter=clutter, front=bool(seed % 2 == 0))
         path = os.path.join(folder, f"scene{seed:03d}{'_clutter' if clutter else ''}.png")
         if not os.path.exists(path):
-            write_png(path, probe_scenes.render_scene(scene, spp=args.spp, seed=seed))
+            write_png(path, probe_scenes.render_probe_scene(scene, spp=args.spp, seed=seed))
         truth = np.asarray(scene.to_light)
         tag = "renders with clutter" if clutter else "renders"
         light = "front" if scene.front else "back"
@@ -68,8 +68,8 @@ def _renders(args, folder: str, rows: list, qa_dir: str | None) -> None:
             err = 180.0
         rows.append((f"{tag}, automatic", light, err))
         # the previous procedure: orthographic view, the true sphere's pixel mask
-        from relight.probe.detect import load_image
-        image = load_image(path)[0]
+        from relight.probe.detect import read_probe_image
+        image = read_probe_image(path)[0]
         cam = scene.camera
         ys, xs = np.mgrid[0:cam.height, 0:cam.width] + 0.5
         mask = geom.surface(cam, scene.chrome, xs, ys)["hit"]
@@ -79,7 +79,7 @@ def _renders(args, folder: str, rows: list, qa_dir: str | None) -> None:
 
 def _psm(rows: list, qa_dir: str | None) -> None:
     from relight.probe import ortho as probes
-    from relight.probe.detect import load_image, load_mask
+    from relight.probe.detect import load_mask, read_probe_image
     from relight.probe.geometry import ProbeError
     from relight.probe.run import write_qa
 
@@ -98,7 +98,7 @@ def _psm(rows: list, qa_dir: str | None) -> None:
             err = 180.0
         rows.append(("psm_spheres, automatic", "front", err))
         rows.append(("psm_spheres, orthographic + mask (previous)", "front",
-                     _angle_deg(probes.chrome_light_direction(load_image(path)[0], mask), truth)))
+                     _angle_deg(probes.chrome_light_direction(read_probe_image(path)[0], mask), truth)))
 
 
 def main() -> None:

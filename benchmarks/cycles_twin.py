@@ -2,7 +2,7 @@
 
 The twin has the same ids, records, scene files and splits as the source dataset; only
 its images (``images/ID.png``, ``exr/ID.exr``) come from Cycles (``relight export-blender``'s
-scene translation, :class:`relight.blender.CyclesWorker`). It is the "other renderer" test
+scene translation, :class:`relight.scene.blender.CyclesWorker`). It is the "other renderer" test
 of ``benchmarks/bench_photos.py``: the same scenes seen through another renderer.
 
 Usage (resumable: re-run the same command; ids already in the twin's manifest are kept)::
@@ -42,7 +42,7 @@ def cycles_twin(src: str, out: str, spp: int = DEFAULT_SPP, limit: int | None = 
     Returns the number of images rendered now."""
     from tqdm import tqdm
 
-    from relight import blender
+    from relight.scene import blender
     from relight.dataset import MANIFEST, load_spec, read_manifest
     from relight.fileio import check_outputs, write_json
     from relight.imageio import write_exr, write_png
@@ -95,7 +95,7 @@ def view_transform_twin(src: str, out: str, view: str = "AgX", progress: bool = 
     import subprocess
     import tempfile
 
-    from relight import blender
+    from relight.scene import blender
     from relight.dataset import MANIFEST, read_manifest
     from relight.errors import BlenderError
     from relight.fileio import check_outputs, write_json

@@ -1,4 +1,7 @@
 """``python -m relight`` (and ``torchrun ... -m relight train``): the ``relight`` command."""
+
+__all__: list[str] = []
+
 import sys
 
 from relight.cli import main

@@ -12,6 +12,11 @@ with what to install otherwise. Never import ``drjit`` or ``mitsuba`` before cal
 """
 from __future__ import annotations
 
+__all__ = [
+    "MIN_LLVM_MAJOR", "INSTALL_HINT", "llvm_candidates", "choose_libllvm", "default_cache_dir", "init",
+    "mitsuba", "drjit", "describe", "cuda_devices",
+]
+
 import ctypes
 import glob
 import os

@@ -9,6 +9,10 @@ line on stderr and exit 2; nothing is half-written.
 """
 from __future__ import annotations
 
+__all__ = [
+    "COMMAND_MODULES", "EXIT_USAGE", "build_parser", "user_errors", "main",
+]
+
 import argparse
 import importlib
 import os

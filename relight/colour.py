@@ -35,6 +35,8 @@ __all__ = [
     "cct_duv_to_xy", "xy_to_rgb", "cct_duv_to_rgb", "rgb_to_cct_duv", "rgb_to_cct_duv_near_locus",
     "sample_light_colour", "srgb_encode", "srgb_decode",
     "kelvin_to_rgb_tanner_helland", "LIGHT_COLOURS", "TANNER_HELLAND_RANGE_K", "CCT_STEP_K", "sample_cct_step_light",
+    "REC709_LUMA", "luminance",
+    "CCT_METHOD", "SRGB_LINEAR_KNEE", "SRGB_ENCODED_KNEE",
 ]
 
 CCT_RANGE_K = (2500.0, 10000.0)  # sampling range of light CCTs, kelvin
@@ -256,6 +258,26 @@ def sample_cct_step_light(rng: np.random.Generator, range_k=TANNER_HELLAND_RANGE
     kelvin = float(range_k[0] + step_k * int(rng.integers(0, n + 1)))
     rgb = kelvin_to_rgb_tanner_helland(kelvin)
     return kelvin, rgb / np.linalg.norm(rgb)
+REC709_LUMA = np.array([0.2126, 0.7152, 0.0722])   # Y of the linear Rec.709 / sRGB primaries (ITU-R BT.709)
+
+
+def luminance(rgb) -> np.ndarray:
+    """Relative luminance ``Y`` of linear Rec.709 RGB: the one place its weights are written.
+
+    Args:
+        rgb: linear RGB, any shape ``(..., C)`` with ``C >= 3`` (channels past the third,
+            e.g. alpha, are ignored); a list or an array of any float or integer type.
+
+    Returns:
+        ``Y = 0.2126 R + 0.7152 G + 0.0722 B``, float64 of shape ``rgb.shape[:-1]``
+        (a 0-d array for one colour).
+
+    >>> luminance(np.eye(3)).tolist()
+    [0.2126, 0.7152, 0.0722]
+    >>> float(luminance([0.5, 0.5, 0.5, 1.0]))    # grey: Y equals the channels; alpha ignored
+    0.5
+    """
+    return np.asarray(rgb)[..., :3] @ REC709_LUMA
 
 
 def _check_finite(values, what: str) -> np.ndarray:

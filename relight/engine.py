@@ -30,10 +30,18 @@ On a machine with CUDA GPUs, ``local:N`` pins worker ``i`` to GPU ``i mod G``
 (``CUDA_VISIBLE_DEVICES``): one worker per GPU with ``local:G``.
 Workers must see the input and output folders at the same paths (a shared file system).
 
-Dask is an optional dependency (``pip install relight[dask]``); this module imports
-it only when a scheduler is used.
+Dask (``dask[distributed]``, a dependency of relight) is imported only when a
+scheduler is used: ``--scheduler``, or ``generate --workers N`` (``local:N``).
 """
 from __future__ import annotations
+
+__all__ = [
+    "LOCAL_RE", "CONNECT_TIMEOUT_S", "MAX_SHARD", "SHARDS_PER_WORKER", "Scheduler", "parse_scheduler",
+    "as_scheduler", "local_worker_env", "client", "worker_threads", "dashboard_link", "n_workers", "shards",
+    "worker_cache", "TaskResult", "run_task", "worker_info", "run_shards", "EngineStats", "map_shards",
+    "describe", "announce", "map_ordered",
+    "ShardPlan",
+]
 
 import contextlib
 import math
@@ -94,8 +102,8 @@ def _import_distributed():
     try:
         import distributed
     except ImportError:
-        raise EngineError("--scheduler needs Dask: pip install 'relight[dask]' "
-                          "(or 'dask[distributed]')") from None
+        raise EngineError("--workers N and --scheduler need Dask: pip install 'dask[distributed]' "
+                          "(a dependency of relight)") from None
     return distributed
 
 
@@ -328,29 +336,40 @@ class EngineStats:
     startup_s: float = 0.0
 
 
-def map_shards(scheduler, fn: Callable, context, ids: list, on_result: Callable, *,
-               threads: int | None = None, mitsuba: bool = True, shard_size: int | None = None,
-               progress: bool = True, stats: EngineStats | None = None) -> EngineStats:
+@dataclass(frozen=True)
+class ShardPlan:
+    """How :func:`map_shards` runs a verb's shards (every field has the usual default).
+
+    >>> ShardPlan(shard_size=1, mitsuba=False)
+    ShardPlan(threads=None, mitsuba=False, shard_size=1, progress=True)
+    """
+    threads: int | None = None      # Dr.Jit threads per worker process (None: the worker decides)
+    mitsuba: bool = True            # the task function needs Mitsuba (initialised once per process)
+    shard_size: int | None = None   # ids per task (None: see :func:`shards`)
+    progress: bool = True           # print the worker count and dashboard on stderr
+
+
+def map_shards(scheduler, fn: Callable, context, ids: list, on_result: Callable,
+               plan: ShardPlan = ShardPlan(), stats: EngineStats | None = None) -> EngineStats:
     """Run ``fn(context, shard)`` over shards of ``ids`` on ``scheduler`` (``local:N``,
     an address or a :class:`Scheduler`) and call ``on_result(shard, value)`` here, in
     the client, as each shard finishes. ``fn`` must be a module-level function and
-    ``context`` picklable; ``mitsuba``: the workers need Mitsuba (initialised once per
-    process); ``shard_size``: fixed ids per task (default: see :func:`shards`);
-    ``progress``: print the worker count and dashboard on stderr. ``stats`` is filled
-    as the run goes (also when it fails)."""
+    ``context`` picklable; ``plan``: threads, Mitsuba, shard size and progress
+    (:class:`ShardPlan`). ``stats`` is filled as the run goes (also when it fails)."""
     scheduler = as_scheduler(scheduler)
     stats = stats if stats is not None else EngineStats()
     t0 = time.perf_counter()
-    with client(scheduler, threads) as (c, n_threads):
+    with client(scheduler, plan.threads) as (c, n_threads):
         stats.startup_s = time.perf_counter() - t0
-        if progress:
+        if plan.progress:
             announce(c, local=bool(scheduler.local))
 
         def done(part, result: TaskResult):
             stats.tasks += 1
             stats.task_s += result.task_s
             on_result(part, result.value)
-        run_shards(c, fn, context, shards(list(ids), n_workers(c), shard_size), done, n_threads, mitsuba)
+        run_shards(c, fn, context, shards(list(ids), n_workers(c), plan.shard_size), done, n_threads,
+                   plan.mitsuba)
     return stats
 
 
@@ -375,22 +394,23 @@ def announce(c, local: bool = False) -> None:
     tqdm.write(describe(c, local), file=sys.stderr)
 
 
-def map_ordered(scheduler, fn: Callable, context, n: int, desc: str, progress: bool = True,
-                bar: bool = True, **kw) -> list:
+def map_ordered(scheduler, fn: Callable, context, n: int, desc: str, plan: ShardPlan = ShardPlan(),
+                bar: bool = True) -> list:
     """The per-item values of ``fn(context, shard)`` (a list per shard) for items
     ``0..n-1``, gathered here in item order under one progress bar (``desc``, items/s);
-    ``bar``: show the bar (with ``progress``); ``kw`` as for :func:`map_shards`. The gathering verbs (compare, invert, baseline)
-    use it, so their outputs are written by the client exactly as on one process."""
+    ``bar``: show the bar (with ``plan.progress``); ``plan`` as for :func:`map_shards`. The
+    gathering verbs (compare, invert, baseline) use it, so their outputs are written by the
+    client exactly as on one process."""
     from tqdm import tqdm
     values = [None] * n
-    pbar = tqdm(total=n, desc=desc, unit="img", disable=None if progress and bar else True)
+    pbar = tqdm(total=n, desc=desc, unit="img", disable=None if plan.progress and bar else True)
 
     def on_result(shard, shard_values):
         for k, value in zip(shard, shard_values):
             values[k] = value
         pbar.update(len(shard))
     try:
-        map_shards(scheduler, fn, context, list(range(n)), on_result, progress=progress, **kw)
+        map_shards(scheduler, fn, context, list(range(n)), on_result, plan)
     finally:
         pbar.close()
     return values

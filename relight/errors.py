@@ -12,6 +12,12 @@ kind of input, so a caller can catch exactly what it can handle::
 """
 from __future__ import annotations
 
+__all__ = [
+    "RelightError", "ConfigError", "SceneFileError", "DatasetError", "ImageError", "OutputError",
+    "PredictionsError", "ModelFileError", "TrainingError", "ProbeError", "InverseError", "BackendError",
+    "EngineError", "BlenderError",
+]
+
 
 class RelightError(Exception):
     """Base of every user-fixable error (one-line message)."""

@@ -14,6 +14,12 @@ the next writer (:func:`remove_temps`) and ignored by every folder reader
 """
 from __future__ import annotations
 
+__all__ = [
+    "TEMP_MARK", "LOCK_NAME", "DATASET_OWNED", "temp_path", "is_temp_name", "remove_temps", "check_outputs",
+    "check_file_target", "check_folder_target", "atomic_write", "atomic_folder", "write_text", "write_bytes",
+    "write_json", "Transaction", "FolderLock", "quiet_library_output",
+]
+
 import contextlib
 import errno
 import io

@@ -38,6 +38,8 @@ __all__ = [
     "PHOTO_CAMERA_TILT_DEG", "ENVMAP_FRAMES", "equirect_to_direction", "direction_to_equirect",
     "equirect_pixel_directions", "equirect_solid_angles", "envmap_rotation", "envmap_to_world",
     "world_to_envmap", "mitsuba_envmap_to_world", "rotation_about",
+    "pan_from_rel", "tangent_move", "rotation_z", "frame_z_to", "perpendicular_pair", "sensor_frame",
+    "fold_over_zenith", "camera_to_pan_tilt",
 ]
 
 Y_SIZE = 7  # the paper's target vector: pan sin/cos, tilt sin/cos, r, g, b
@@ -216,6 +218,53 @@ def frame_z_to(d) -> np.ndarray:
     x /= np.linalg.norm(x)
     y = np.cross(d, x)
     return np.stack([x, y, d], axis=1)
+
+
+def perpendicular_pair(axis) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors ``(e1, e2)`` that complete the unit vector ``axis`` to a
+    right-handed orthonormal frame ``(e1, e2, axis)``: ``e1 = axis x h / |axis x h|``
+    with the helper ``h`` = +Y (+X when ``axis`` is within 26 degrees of +-Y), and
+    ``e2 = axis x e1``. Used to walk a cone or a circle around ``axis``.
+
+    Args:
+        axis: a unit 3-vector (any frame; the pair is in the same frame).
+
+    Returns:
+        ``(e1, e2)``, float64 unit 3-vectors, each orthogonal to ``axis`` and to the other.
+
+    >>> e1, e2 = perpendicular_pair([0.0, 0.0, 1.0])
+    >>> (e1 + 0.0).tolist(), (e2 + 0.0).tolist()
+    ([-1.0, 0.0, 0.0], [0.0, -1.0, 0.0])
+    """
+    a = np.asarray(axis, dtype=np.float64)
+    e1 = np.cross(a, [0.0, 1.0, 0.0] if abs(a[1]) < 0.9 else [1.0, 0.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(a, e1)
+
+
+def sensor_frame(forward, up) -> np.ndarray:
+    """3x3 rotation of a Mitsuba sensor (local +X left, +Y up, +Z forward) looking along
+    the unit vector ``forward``, its up as close to ``up`` as orthogonality allows.
+
+    Args:
+        forward: unit 3-vector, world frame: the viewing direction.
+        up: 3-vector, world frame, not parallel to ``forward``.
+
+    Returns:
+        ``(3, 3)`` float64 whose columns are the sensor's left, up and forward in world
+        coordinates (the upper-left block of a Mitsuba ``to_world``).
+
+    A sensor looking along -X with up +Z has its left at -Y, as
+    :func:`mitsuba_sensor_to_world` of a level camera on +X:
+
+    >>> m = sensor_frame([-1.0, 0.0, 0.0], [0.0, 0.0, 1.0])
+    >>> (m[:, 0] + 0.0).tolist(), (m[:, 1] + 0.0).tolist()
+    ([0.0, -1.0, 0.0], [0.0, 0.0, 1.0])
+    """
+    fwd = np.asarray(forward, np.float64)
+    left = np.cross(up, fwd)
+    left /= np.linalg.norm(left)
+    return np.stack([left, np.cross(fwd, left), fwd], axis=1)
 
 
 def encode_y(pan_l_deg, tilt_l_deg, rgb, tilt_c_deg, pan_c_deg=0.0) -> np.ndarray:

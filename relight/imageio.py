@@ -8,6 +8,11 @@ half-written image under its final name.
 """
 from __future__ import annotations
 
+__all__ = [
+    "write_exr", "read_exr", "to_srgb8", "write_png", "write_srgb8", "MAX_IMAGE_PIXELS", "load_image",
+    "read_image", "read_srgb8",
+]
+
 import os
 
 import numpy as np

@@ -33,6 +33,7 @@ __all__ = [
     "METRICS", "tilt_level", "pan_level", "error_tables", "format_tables", "pan_where_defined",
     "format_pan_where_defined", "pan_by_tilt", "format_pan_by_tilt",
     "ZENITH_TILT_DEG", "TILT_STEP_DEG", "TABLE_METRICS", "METRIC_LABELS", "pan_defined", "table_values",
+    "STATS", "STAT_LABELS", "angle_deg",
 ]
 
 METRICS = ("pan", "tilt", "direction", "colour")  # keys of light_errors, table order

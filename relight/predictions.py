@@ -16,6 +16,11 @@ file and raises :class:`PredictionsError` with one line naming the bad entry; wi
 """
 from __future__ import annotations
 
+__all__ = ["resolve_dataset_dir", 
+    "PREDICTIONS_FORMAT", "Prediction", "parse_entry", "PredictionsFile", "read_predictions",
+    "write_predictions", "entry_for_image",
+]
+
 import json
 import math
 import os
@@ -197,7 +202,29 @@ class PredictionsFile:
 
 
 def read_predictions(path: str | os.PathLike, skip_bad: bool = False) -> PredictionsFile:
-    """Read and validate a predictions file. Duplicated ids are errors."""
+    """Read and validate a predictions file. Duplicated ids are errors.
+
+    Args:
+        path: a ``relight.predictions/v1`` JSON file (``docs/conventions.md``).
+        skip_bad: collect malformed entries in ``bad`` instead of raising.
+
+    Returns:
+        A :class:`PredictionsFile`: the validated :class:`Prediction` entries (angles in
+        degrees, pan relative to the camera; linear unit-norm ``rgb``, or the raw ``y``),
+        the ``dataset`` folder if named, and the file's other fields in ``meta``.
+
+    Raises:
+        PredictionsError naming the file and the entry.
+
+    >>> import os, tempfile
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> path = os.path.join(tmp.name, "pred.json")
+    >>> write_predictions(path, [{"id": "000003", "pan_deg": 90.0, "tilt_deg": 40.0, "rgb": [1.0, 0.9, 0.8]}])
+    >>> p = read_predictions(path).predictions[0]
+    >>> p.id, p.pan_deg, p.tilt_deg
+    ('000003', 90.0, 40.0)
+    >>> tmp.cleanup()
+    """
     path = os.fspath(path)
     try:
         with open(path) as f:
@@ -248,7 +275,29 @@ def write_predictions(path: str | os.PathLike, entries: list[dict], dataset: str
     the path relative to the file), and then the file is ``relight.predictions/v2``
     (else v1). Entries are validated first (ids unique). The file is refused if it
     is one of ``inputs`` or inside ``dataset``'s own files; with a
-    :class:`relight.fileio.Transaction` it is staged there instead of written."""
+    :class:`relight.fileio.Transaction` it is staged there instead of written.
+
+    Args:
+        path: the file to write (``relight.predictions/v1``).
+        entries: dicts as above: angles in degrees (pan relative to the camera, 0 front,
+            90 the camera's right), ``rgb`` linear (any positive scale).
+        dataset: the dataset folder the ids belong to (recorded in the file).
+        colour_only: the entries carry a colour and no direction.
+        inputs: files the output must not overwrite; ``transaction``: stage the write.
+        **meta: other top-level fields (e.g. ``model``).
+
+    Returns:
+        None; the file is complete or untouched (atomic rename).
+
+    >>> import json, os, tempfile
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> path = os.path.join(tmp.name, "pred.json")
+    >>> write_predictions(path, [{"id": "a", "pan_deg": 10.0, "tilt_deg": 50.0, "rgb": [1, 1, 1]}], model="demo")
+    >>> doc = json.load(open(path))
+    >>> doc["format"], doc["model"], len(doc["predictions"])
+    ('relight.predictions/v1', 'demo', 1)
+    >>> tmp.cleanup()
+    """
     seen = set()
     version = 2 if any(isinstance(e, dict) and "envmap" in e for e in entries) else 1
     for i, e in enumerate(entries):
@@ -291,3 +340,17 @@ def entry_for_image(predictions, image_path: str, wanted_id: str | None):
     if not found:
         raise PredictionsError(f"{len(predictions)} entries and none has id {stem!r}; choose one with --id")
     return found[0]
+
+
+def resolve_dataset_dir(predictions_path: str, data_dir: str | None, file_dataset: str | None) -> str:
+    """The dataset folder: ``data_dir`` if given, else the file's ``dataset`` field
+    (a relative path is tried against the predictions file's folder, then the cwd)."""
+    if data_dir:
+        return os.path.abspath(data_dir)
+    if not file_dataset:
+        raise PredictionsError(f"{predictions_path}: no dataset given (use --data DIR or a "
+                           "'dataset' field in the file)")
+    if os.path.isabs(file_dataset):
+        return file_dataset
+    beside = os.path.join(os.path.dirname(os.path.abspath(predictions_path)), file_dataset)
+    return os.path.abspath(beside if os.path.isdir(beside) else file_dataset)

@@ -14,6 +14,10 @@ The inverse renderer's automatic-differentiation paths (:mod:`relight.inverse`) 
 """
 from __future__ import annotations
 
+__all__ = [
+    "sensor", "render_scene", "exact_spp",
+]
+
 import numpy as np
 
 from relight import backend
@@ -37,10 +41,19 @@ def sensor(res: int, fov_deg: float, sampler: str = "independent", to_world=None
 def render_scene(scene, spp: int, seed: int, sampler: str = "independent", integrator=None,
                  sensor: int = 0) -> np.ndarray:
     """Render a loaded Mitsuba scene: ``(H, W, C)`` float32, linear. ``spp`` is rounded as
-    ``sampler`` needs (:func:`relight.scene.noise.exact_spp`: a square for multijitter);
+    ``sampler`` needs (:func:`exact_spp`: a product of two close integers for multijitter);
     ``integrator`` (a loaded one) replaces the scene's, ``sensor`` picks one of its sensors."""
-    from relight.scene import noise
     mi = backend.mitsuba()
-    spp = noise.exact_spp(sampler, int(spp))
+    spp = exact_spp(sampler, int(spp))
     return np.array(mi.render(scene, integrator=integrator, sensor=int(sensor), spp=spp, seed=int(seed)),
                     dtype=np.float32)
+
+
+def exact_spp(sampler: str, spp: int) -> int:
+    """The sample count Mitsuba actually takes for ``spp`` (``multijitter`` rounds up to
+    a product of two close integers, e.g. 32 -> 35); passing it avoids Mitsuba's
+    rounding warning and changes nothing in the image."""
+    if sampler == "multijitter":
+        rows = max(1, int(np.sqrt(spp)))
+        return rows * ((spp + rows - 1) // rows)
+    return int(spp)

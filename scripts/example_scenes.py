@@ -20,7 +20,7 @@ import numpy as np
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, REPO)
 
-from relight.scene.sampling import GeneratorConfig, sample_scene  # noqa: E402
+from relight.generator.sampling import GeneratorConfig, sample_scene  # noqa: E402
 from relight.scene.spec import (CameraSpec, LightSpec, ObjectSpec, RenderSpec, RoomSpec,  # noqa: E402
                                 SceneSpec)
 

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # SID2-scale data with mosaic backgrounds (--backgrounds mosaic: walls and floor are grids of
-# 16-256 independently coloured cells; README "Backgrounds"), to measure what many
+# 16-256 independently coloured cells; docs/generator.md "Backgrounds"), to measure what many
 # independent surfaces in view do to the colour error. Resumable: re-run the same command
 # after a kill or a new session. Default root /root/relight-data (outside the repository).
 #   test:  2,500 images, seed 9 (never used for training), evaluate with --split all

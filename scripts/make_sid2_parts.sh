@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # SID2-scale data with multi-coloured objects (--object-parts 1-32, the paper's colour per
-# mesh part; README "Multi-coloured objects"): resumable, re-run the same command after a
+# mesh part; docs/generator.md "Multi-coloured objects"): resumable, re-run the same command after a
 # kill or a new session. Default root /root/relight-data (outside the repository).
 #   test:  2,500 images, seed 5 (never used for training), evaluate with --split all
 #   train: 50,000 images, seed 6, split 90/10 -> ~45,000 train + ~5,000 val

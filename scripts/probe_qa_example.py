@@ -21,11 +21,11 @@ def main() -> int:
     args = ap.parse_args()
     backend.init()
     from relight.imageio import write_png
-    from relight.verify.probe_scenes import render_scene, sample_scene
-    scene = sample_scene(3, 480, 360, clutter=True)
+    from relight.verify.probe_scenes import render_probe_scene, sample_probe_scene
+    scene = sample_probe_scene(3, 480, 360, clutter=True)
     with tempfile.TemporaryDirectory() as tmp:
         photo = os.path.join(tmp, "scene.png")
-        write_png(photo, render_scene(scene, spp=64, seed=0))
+        write_png(photo, render_probe_scene(scene, spp=64, seed=0))
         qa = os.path.join(tmp, "qa.png")
         subprocess.run([sys.executable, "-m", "relight", "probe", "--chrome", photo, "--diffuse", photo,
                         "--fov", repr(scene.fov_deg), "--out", os.path.join(tmp, "pred.json"),

@@ -34,7 +34,7 @@ if ! "$VPY" -c "import bpy, numpy, sys; sys.exit(0 if bpy.app.version_string == 
   "$VPY" -m pip install --quiet "$BPY_PIN" "$NUMPY_PIN"
 fi
 
-if ! (cd / && "$VPY" -c "import relight.blender") 2>/dev/null; then
+if ! (cd / && "$VPY" -c "import relight.scene.blender") 2>/dev/null; then
   echo "[setup_blender] installing relight (editable, --no-deps)"
   "$VPY" -m pip install --quiet --no-deps -e .
 fi

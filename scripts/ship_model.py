@@ -59,7 +59,7 @@ def dataset_settings(card: dict) -> dict:
     field existed (sampler ``independent``, prior ``hsv``, one-colour objects, pattern backgrounds) and the
     samples per pixel
     the run took (``spp_used``: the card's ``spp``, resolved from the noise target)."""
-    from relight.scene.sampling import LEGACY_CONFIG
+    from relight.generator.sampling import LEGACY_CONFIG
     cfg = LEGACY_CONFIG | dict(card["config"])
     cfg["spp_used"] = card.get("spp") or cfg.get("spp")
     return cfg
@@ -91,7 +91,7 @@ def generate_command(card: dict, path: str, count: int) -> tuple[str, str]:
     without an option go into ``--config CONFIG.json``, which the note spells out)."""
     import dataclasses
 
-    from relight.scene.sampling import GeneratorConfig, is_sid2_paper
+    from relight.generator.sampling import GeneratorConfig, is_sid2_paper
     default = json.loads(json.dumps(dataclasses.asdict(GeneratorConfig())))
     cfg = dataset_settings(card)
     preset = is_sid2_paper(cfg)
@@ -509,6 +509,7 @@ dataset made by `relight generate`. It is the default model of `relight predict`
   {w['pan']:g} x MSE(pan pair) + {w['tilt']:g} x MSE(tilt pair) + {w['colour']:g} x mean RGB angular error (radians).
 - {f'Stage {len(stages) + 1}: ' if stages else ''}{meta['trained_epochs_total']} epochs in {meta['train_time_s_all_epochs'] / 60:.0f} min on the 2-core CPU; best val
   loss at epoch {meta['best_epoch']} ({meta['train_time_s_to_best'] / 60:.0f} min). Learning-rate drops: {', '.join(drops) or 'none'}.{stopped}
+- The training history, stage by stage and epoch by epoch: [docs/training.md](../../docs/training.md).
 
 ## Test results (fresh test set, never used for training)
 `{test_cmd}`{(' (' + test_note + ')') if test_note else ''}

@@ -41,8 +41,8 @@ def sphere_scene(pan_rel_deg=90.0, tilt_deg=30.0, camera_tilt_deg=30.0, res=48, 
 
 def tiny_dataset(root, count: int, seed: int, res: int = 32) -> str:
     """A small generated dataset (4 spp) in ``root``; returns its path."""
-    from relight.dataset import generate
-    from relight.scene.sampling import GeneratorConfig
+    from relight.generator.run import generate
+    from relight.generator.sampling import GeneratorConfig
     generate(root, count=count, seed=seed, cfg=GeneratorConfig(res=res, spp=4), progress=False)
     return str(root)
 

@@ -14,7 +14,7 @@ import pytest
 
 from relight.errors import ConfigError
 from relight.scene import textures as T
-from relight.scene.sampling import GeneratorConfig, sample_scene
+from relight.generator.sampling import GeneratorConfig, sample_scene
 from relight.scene.spec import SceneSpec
 
 
@@ -98,7 +98,8 @@ def test_mosaic_scene_renders_from_its_file(mi):
 
 
 def test_generate_records_the_setting_and_refuses_a_mixed_dataset(tmp_path, mi):
-    from relight.dataset import DatasetError, generate
+    from relight.dataset import DatasetError
+    from relight.generator.run import generate
     cfg = GeneratorConfig(res=16, spp=2, backgrounds="mosaic")
     generate(tmp_path, 1, seed=4, cfg=cfg, progress=False)
     card = json.loads((tmp_path / "dataset.json").read_text())

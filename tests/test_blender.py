@@ -9,7 +9,7 @@ import os
 import numpy as np
 import pytest
 
-from relight import blender
+from relight.scene import blender
 from relight.scene.spec import LightSpec
 
 from conftest import sphere_scene

@@ -153,15 +153,16 @@ def test_template_equals_scene_built_from_the_spec_directly(mi, tmp_path, parts)
     # the template path (one loaded scene, spec written by apply, after another spec
     # was written into it) against a scene dict made straight from the spec; with
     # multi-coloured objects, each part its own mesh and BSDF
-    from relight.scene import bsdf, noise
-    from relight.scene.sampling import GeneratorConfig, sample_scene
+    from relight.render import exact_spp
+    from relight.scene import bsdf
+    from relight.generator.sampling import GeneratorConfig, sample_scene
     bsdf.register()
     spec = sample_scene(GeneratorConfig(res=32, spp=4, object_parts=parts), 7, 3)
     assert all(len(o.colours) >= parts[0] for o in spec.objects)
     _render(sample_scene(GeneratorConfig(res=32, spp=4, object_parts=(1, 32)), 7, 4))   # disturb the template first
     a = _render(spec)
     naive = mi.load_dict(_naive_scene_dict(mi, spec, tmp_path))
-    spp = noise.exact_spp(spec.render.sampler, spec.render.spp)
+    spp = exact_spp(spec.render.sampler, spec.render.spp)
     b = np.array(mi.render(naive, spp=spp, seed=spec.render.seed), dtype=np.float32)
     assert b.mean() > 1e-3                                       # the scene is lit and seen
     # same samples, so only float rounding differs (measured max 6e-5); turning an object

@@ -20,7 +20,7 @@ def run(argv, capsys):
 
 @pytest.fixture(scope="module")
 def scene_file(tmp_path_factory):
-    from relight.scene.sampling import GeneratorConfig, sample_scene
+    from relight.generator.sampling import GeneratorConfig, sample_scene
     path = tmp_path_factory.mktemp("cli") / "scene.json"
     sample_scene(GeneratorConfig(res=16, spp=2), 0, 1).save(path)
     return path

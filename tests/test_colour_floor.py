@@ -1,4 +1,4 @@
-"""The ideal observer behind the colour target's evidence (README "Multi-coloured
+"""The ideal observer behind the colour target's evidence (docs/generator.md "Multi-coloured
 objects"): the closed-form density of a surface's colour direction under a light,
 against Monte Carlo, and the Bayes floor falling as surfaces are added."""
 import numpy as np
@@ -38,7 +38,7 @@ def test_bayes_floor_falls_with_more_surfaces():
     rng = np.random.default_rng(1)
     cands = np.array([sample_light_colour(rng)[2] for _ in range(1500)])
     few, many = (ideal_observer_errors(n, 60, cands, rng).mean() for n in (2, 60))
-    # README table (2,000 scenes per count): 1 surface 8.14, 3 surfaces 5.37, 30 surfaces 2.22, 100 surfaces 1.28
+    # docs/generator.md table (2,000 scenes per count): 1 surface 8.14, 3 surfaces 5.37, 30 surfaces 2.22, 100 surfaces 1.28
     assert 3.5 < few < 9.0 and many < 2.5 and many < 0.5 * few, (few, many)
 
 
@@ -48,8 +48,9 @@ def test_colour_error_by_object_parts(mi, tmp_path):
     import importlib.util
     import os
 
-    from relight.dataset import generate, read_manifest
-    from relight.scene.sampling import GeneratorConfig
+    from relight.dataset import read_manifest
+    from relight.generator.run import generate
+    from relight.generator.sampling import GeneratorConfig
     from relight.scene.spec import load_scene
     spec = importlib.util.spec_from_file_location(
         "bench_colour_floor", os.path.join(os.path.dirname(__file__), "..", "benchmarks", "bench_colour_floor.py"))
@@ -109,9 +110,10 @@ def test_scene_floor_counts_the_surfaces_an_image_shows(mi, tmp_path):
     import importlib.util
     import os
 
-    from relight.dataset import generate, read_manifest
+    from relight.dataset import read_manifest
+    from relight.generator.run import generate
     from relight.scene.build import SceneBuilder
-    from relight.scene.sampling import GeneratorConfig
+    from relight.generator.sampling import GeneratorConfig
     from relight.scene.spec import load_scene
     spec = importlib.util.spec_from_file_location(
         "bench_colour_floor", os.path.join(os.path.dirname(__file__), "..", "benchmarks", "bench_colour_floor.py"))
@@ -205,8 +207,8 @@ def test_library_likelihood_identifies_the_light_of_a_known_background():
 def test_scene_floor_of_the_paper_preset_seen_and_unseen(mi, tmp_path):
     """On library backgrounds the floor is near 0 (the observer knows the backgrounds); on
     unseen ones it stays finite and above it on the same scenes' seeds."""
-    from relight.dataset import generate
-    from relight.scene.sampling import sid2_paper_config
+    from relight.generator.run import generate
+    from relight.generator.sampling import sid2_paper_config
     bench = _bench()
     rows = {}
     for mode in ("library", "unseen"):

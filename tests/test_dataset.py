@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 from relight import frames
-from relight.dataset import generate, read_manifest
-from relight.scene.sampling import GeneratorConfig
+from relight.dataset import read_manifest
+from relight.generator.run import generate
+from relight.generator.sampling import GeneratorConfig
 
 POS_TOL_M = 1e-6
 Y_TOL = 1e-9
@@ -146,7 +147,7 @@ def test_card_written_before_a_setting_existed_still_resumes(tmp_path, mi):
 
 
 def test_split_is_deterministic_and_balanced():
-    from relight.scene.sampling import split_of
+    from relight.generator.sampling import split_of
     splits = [split_of(f"{i:06d}") for i in range(3000)]
     assert splits == [split_of(f"{i:06d}") for i in range(3000)]
     frac = {s: splits.count(s) / 3000 for s in ("train", "val", "test")}
@@ -154,7 +155,7 @@ def test_split_is_deterministic_and_balanced():
 
 
 def test_sampling_rules():
-    from relight.scene.sampling import sample_scene
+    from relight.generator.sampling import sample_scene
     cfg = GeneratorConfig()
     for i in range(40):
         spec = sample_scene(cfg, 0, i)

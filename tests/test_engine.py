@@ -8,9 +8,10 @@ import time
 
 import pytest
 
-from relight.dataset import generate, read_manifest
+from relight.dataset import read_manifest
+from relight.generator.run import generate
 from relight.engine import EngineError, parse_scheduler, shards
-from relight.scene.sampling import GeneratorConfig
+from relight.generator.sampling import GeneratorConfig
 
 distributed = pytest.importorskip("distributed")
 
@@ -129,7 +130,7 @@ def test_a_failing_task_is_one_error_not_a_lost_scheduler():
     try:
         with pytest.raises(EngineError, match="a task failed: OSError.*No space left"):
             engine.map_shards("local:1", _broken, None, [0, 1], lambda part, value: None,
-                              mitsuba=False, progress=False)
+                              engine.ShardPlan(mitsuba=False, progress=False))
     finally:
         cloudpickle.unregister_pickle_by_value(sys.modules[__name__])
 
@@ -241,7 +242,7 @@ def _infos(scheduler, n, **kw):
     from relight import engine
     infos = []
     engine.map_shards(scheduler, engine.worker_info, None, list(range(n)),
-                      lambda part, value: infos.append(value), progress=False, shard_size=1, **kw)
+                      lambda part, value: infos.append(value), engine.ShardPlan(progress=False, shard_size=1, **kw))
     return infos
 
 

@@ -24,8 +24,8 @@ TIME_FIELDS = {"seconds", "render_seconds", "seconds_per_image"}
 
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory):
-    from relight.dataset import generate
-    from relight.scene.sampling import GeneratorConfig
+    from relight.generator.run import generate
+    from relight.generator.sampling import GeneratorConfig
     path = tmp_path_factory.mktemp("engine_verbs") / "ds"
     generate(path, N, seed=SEED, cfg=GeneratorConfig(res=RES, spp=SPP), progress=False)
     return str(path)

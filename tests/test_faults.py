@@ -145,9 +145,10 @@ def world(tmp_path_factory, mi):
     named like an image, a broken model file."""
     from PIL import Image
 
-    from relight.dataset import generate, read_manifest
+    from relight.dataset import read_manifest
+    from relight.generator.run import generate
     from relight.predictions import write_predictions
-    from relight.scene.sampling import GeneratorConfig
+    from relight.generator.sampling import GeneratorConfig
     root = tmp_path_factory.mktemp("faults")
     inp = root / "in"
     inp.mkdir()

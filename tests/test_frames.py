@@ -124,3 +124,21 @@ def test_decode_y_folds_tilt_over_the_zenith():
     assert np.all(np.abs(tilts) <= 90.0)
     for (p, t), pd, td in zip([(10, 100), (200, 60), (300, -95)], pans, tilts):
         assert np.allclose(frames.direction(pd, td), frames.direction(p, t), atol=1e-9)
+
+
+def test_perpendicular_pair_completes_a_right_handed_frame():
+    rng = np.random.default_rng(7)
+    for a in list(rng.normal(size=(200, 3))) + [np.array([0.0, 1.0, 0.0]), np.array([0.0, -1.0, 0.0])]:
+        a = a / np.linalg.norm(a)
+        e1, e2 = frames.perpendicular_pair(a)
+        m = np.stack([e1, e2, a], axis=1)
+        assert np.allclose(m.T @ m, np.eye(3), atol=1e-12)
+        assert np.isclose(np.linalg.det(m), 1.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("tilt,pan", [(0.0, 0.0), (35.0, 20.0), (70.0, 250.0), (-20.0, 90.0)])
+def test_sensor_frame_is_the_cameras_mitsuba_frame(tilt, pan):
+    # a camera looking at the origin with up +Z: the same rotation as mitsuba_sensor_to_world
+    forward = frames.camera_basis(tilt, pan)[2]
+    m = frames.sensor_frame(forward, [0.0, 0.0, 1.0])
+    assert np.allclose(m, frames.mitsuba_sensor_to_world(tilt, 20.0, pan)[:3, :3], atol=1e-12)

@@ -20,8 +20,8 @@ N_IMAGES = 2
 
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory, mi):
-    from relight.dataset import generate
-    from relight.scene.sampling import GeneratorConfig
+    from relight.generator.run import generate
+    from relight.generator.sampling import GeneratorConfig
     out = tmp_path_factory.mktemp("inv_data")
     generate(out, count=N_IMAGES, seed=5, cfg=GeneratorConfig(res=32, spp=16), progress=False)
     return out

@@ -35,7 +35,7 @@ def scene(mi):
     from relight.frames import tangent_move
     from relight.inverse.objective import LightRenderer
     from relight.scene.build import SceneBuilder
-    from relight.scene.sampling import GeneratorConfig, sample_scene
+    from relight.generator.sampling import GeneratorConfig, sample_scene
     # a generated room with two objects; light at pan_rel 60, tilt 45 (cast shadows on
     # the floor move with the light, which the finite difference includes)
     spec = sample_scene(GeneratorConfig(res=32, spp=64), 11, 3).with_light(60.0, 45.0)

@@ -38,10 +38,10 @@ def test_preset_mid_records_and_masked_copies(tmp_path):
     assert len(records) + len(doc["procedure_failed"]) == 2       # two flash directions
     assert (out / "images" / "0000_ref.png").is_file()             # the reference image
     from relight.imageio import read_srgb8
-    from relight.mid import sphere_mask
-    from relight.scene.mid import MidConfig, sample_scene
+    from relight.experiments.mid.dataset import sphere_mask
+    from relight.experiments.mid.scene import MidConfig, sample_mid_scene
     mcfg = MidConfig.from_dict(TINY)
-    mask = sphere_mask(mcfg, sample_scene(mcfg, 0, 0))
+    mask = sphere_mask(mcfg, sample_mid_scene(mcfg, 0, 0))
     for iid in ("0000_00", "0000_04"):
         vis, masked = read_srgb8(out / "images" / f"{iid}.png")[0], read_srgb8(out / "masked" / f"{iid}.png")[0]
         assert vis.shape == masked.shape == (32, 32, 3)
@@ -65,7 +65,7 @@ def test_preset_mid_records_and_masked_copies(tmp_path):
 
 
 def _empty_room():
-    from relight.scene.mid import MidScene
+    from relight.experiments.mid.scene import MidScene
     return MidScene(index=0, seed=0, room_half=(2.0, 2.0), ceiling_m=2.5,
                     camera_position=np.array([1.7, 0.0, 1.5]), camera_tilt_deg=20.0,
                     wall_rgb=[[0.5] * 3] * 5, floor_rgb=[0.3] * 3,
@@ -77,7 +77,7 @@ def test_physical_truth_closed_forms(mi):
     """An empty room: (a) the flash aimed at the chrome sphere: the light arrives from the
     flash; (b) the flash aimed at the ceiling: the brightest light is the ceiling's lit
     spot straight above the flash (Lambertian ceiling, the spot's peak irradiance there)."""
-    from relight.scene.mid import MidConfig, MidRenderer
+    from relight.experiments.mid.scene import MidConfig, MidRenderer
     scene = _empty_room()
     # the flash in a 0.12 m snoot (a ~40 deg beam): the lit spot is compact, its centre above the flash
     cfg = MidConfig(res=16, spp=1, probe_spp=1, cube_res=16, cube_spp=16, directions=(0,), snoot_m=0.12)
@@ -151,7 +151,7 @@ def test_train_init_refuses_a_bad_model(tmp_path):
 
 
 def test_tables_on_known_inputs():
-    from relight import mid
+    from relight.experiments.mid import dataset as mid
     truth = {"pan_rel_deg": np.array([0.0, 30.0, 180.0, 200.0]), "tilt_deg": np.array([30.0, 40.0, 50.0, 60.0]),
              "rgb": np.ones((4, 3))}
     pred = {"pan_rel_deg": np.array([10.0, 30.0, 180.0, 160.0]), "tilt_deg": np.array([30.0, 44.0, 50.0, 60.0]),
@@ -183,10 +183,10 @@ def test_one_flash_colour_for_every_room_unless_asked():
     The rooms themselves do not depend on the choice."""
     from relight.colour import cct_duv_to_rgb
     from relight.errors import ConfigError
-    from relight.mid import mid_config
-    from relight.scene import mid as sm
-    fixed = [sm.sample_scene(sm.MidConfig(), 3, i) for i in range(4)]
-    free = [sm.sample_scene(sm.MidConfig(flash_cct_k=None), 3, i) for i in range(4)]
+    from relight.experiments.mid.dataset import mid_config
+    from relight.experiments.mid import scene as sm
+    fixed = [sm.sample_mid_scene(sm.MidConfig(), 3, i) for i in range(4)]
+    free = [sm.sample_mid_scene(sm.MidConfig(flash_cct_k=None), 3, i) for i in range(4)]
     want = np.asarray(cct_duv_to_rgb(sm.FLASH_CCT_K, 0.0))
     for a, b in zip(fixed, free):
         assert a.flash_cct_k == sm.FLASH_CCT_K
@@ -202,7 +202,7 @@ def test_one_flash_colour_for_every_room_unless_asked():
 def test_dominant_direction_equals_the_exhaustive_cap_search():
     """The neighbour-tree cap search gives the exhaustive N x N search's answer (which
     needs N^2 memory: 5 GB at 64 px a face), and finds a lone bright cap's centre."""
-    from relight.scene.mid import cube_directions, dominant_direction
+    from relight.experiments.mid.scene import cube_directions, dominant_direction
     rng = np.random.default_rng(4)
     dirs, omega = cube_directions(12)
     dirs, omega = dirs.reshape(-1, 3), omega.ravel()
@@ -225,13 +225,13 @@ def test_reference_expectation_points_from_the_sphere_to_the_flash():
     outline circle (probe-photograph pixels) and known radius, then the direction from
     its centre to the flash above the camera -- against the sampled room's geometry."""
     from relight import frames
-    from relight.mid import chrome_distance_m, expected_reference
+    from relight.experiments.mid.dataset import chrome_distance_m, expected_reference
     from relight.probe.geometry import Camera, outline_circle
-    from relight.scene import mid as sm
+    from relight.experiments.mid import scene as sm
     cfg = sm.MidConfig()
     size = cfg.res * cfg.probe_zoom     # the probe photograph's camera, built here independently
     for index in range(6):
-        scene = sm.sample_scene(cfg, 2, index)
+        scene = sm.sample_mid_scene(cfg, 2, index)
         sphere = sm.probe_sphere(scene, "chrome")
         circle = outline_circle(Camera.from_fov(size, size, cfg.fov_deg), sphere)
         centre = np.asarray(sphere.centre)

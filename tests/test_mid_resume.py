@@ -143,7 +143,7 @@ def test_other_settings_are_named_when_resume_is_refused(tmp_path):
     import pytest
 
     from relight.errors import DatasetError
-    from relight.mid import MidConfig, _write_card
+    from relight.experiments.mid.dataset import MidConfig, _write_card
     _write_card(str(tmp_path), 5, MidConfig(), 2, 0)
     _write_card(str(tmp_path), 5, MidConfig(), 2, 1)          # same settings: fine
     card = (tmp_path / "dataset.json").read_bytes()

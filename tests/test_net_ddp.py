@@ -16,8 +16,8 @@ TORCHRUN_TIMEOUT_S = 180
 
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory, mi):
-    from relight.dataset import generate
-    from relight.scene.sampling import GeneratorConfig
+    from relight.generator.run import generate
+    from relight.generator.sampling import GeneratorConfig
     root = tmp_path_factory.mktemp("ddp_data")
     generate(root, count=12, seed=5, cfg=GeneratorConfig(res=RES, spp=2), progress=False)
     return str(root)

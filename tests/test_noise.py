@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from relight.scene import albedo, noise
-from relight.scene.sampling import ConfigError, GeneratorConfig, sample_scene
+from relight.generator.sampling import ConfigError, GeneratorConfig, sample_scene
 from relight.scene.spec import RenderSpec, SceneFileError, load_scene
 
 DATA = os.path.join(os.path.dirname(__file__), "data")

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from relight.scene import shapes as S
-from relight.scene.sampling import GeneratorConfig, sample_scene
+from relight.generator.sampling import GeneratorConfig, sample_scene
 from relight.scene.spec import ObjectSpec, SceneFileError, SceneSpec
 
 

@@ -15,7 +15,7 @@ from relight.errors import DatasetError
 from relight.imageio import to_srgb8
 from relight.net.augment import HABLE_WHITE, PipelineAugment, hable
 from relight.net.model import LightNet, NetConfig, camera_tilt_deg
-from relight.scene.sampling import MIN_CAMERA_R_M, PRESETS, VOID_ALBEDO, GeneratorConfig, sample_scene
+from relight.generator.sampling import MIN_CAMERA_R_M, PRESETS, VOID_ALBEDO, GeneratorConfig, sample_scene
 
 SEED = 11
 N_SCENES = 200

@@ -139,15 +139,15 @@ def small_render(tmp_path_factory):
     """A 256 x 192 validation render (chrome + gray sphere, clutter) saved as 8-bit PNG."""
     from relight.imageio import write_png
     from relight.verify import probe_scenes
-    scene = probe_scenes.sample_scene(3, width=256, height=192, clutter=True, front=True, fov_deg=40.0)
+    scene = probe_scenes.sample_probe_scene(3, width=256, height=192, clutter=True, front=True, fov_deg=40.0)
     path = tmp_path_factory.mktemp("probe") / "scene.png"
-    write_png(path, probe_scenes.render_scene(scene, spp=16))
+    write_png(path, probe_scenes.render_probe_scene(scene, spp=16))
     return scene, str(path)
 
 
 def test_circle_detection_on_a_render(small_render):
     scene, path = small_render
-    image = probe_detect.load_image(path)[0]
+    image = probe_detect.read_probe_image(path)[0]
     cam = scene.camera
     candidates = probe_detect.find_spheres(image, cam)
     chrome = probe_detect.pick_sphere(candidates, "chrome")
@@ -189,10 +189,10 @@ def test_linear_16_bit_png(tmp_path):
     image = _mirror_render(cam, sphere, to_light)
     path = tmp_path / "linear16.png"
     cv2.imwrite(str(path), np.round(image[..., ::-1] * 65535).astype(np.uint16))
-    loaded, clip, how = probe_detect.load_image(str(path), linear=True)
+    loaded, clip, how = probe_detect.read_probe_image(str(path), linear=True)
     assert clip == 1.0 and "linear 16-bit" in how
     assert np.abs(loaded - image).max() < 1e-4
-    decoded, _, how = probe_detect.load_image(str(path))              # default: sRGB
+    decoded, _, how = probe_detect.read_probe_image(str(path))              # default: sRGB
     assert "sRGB" in how and decoded[75, 20, 0] < loaded[75, 20, 0]
 
 

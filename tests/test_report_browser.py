@@ -48,8 +48,9 @@ def _parse(text):
 
 @pytest.fixture(scope="module")
 def report(tmp_path_factory, mi):
-    from relight.dataset import generate, read_manifest
-    from relight.scene.sampling import GeneratorConfig
+    from relight.dataset import read_manifest
+    from relight.generator.run import generate
+    from relight.generator.sampling import GeneratorConfig
     root = tmp_path_factory.mktemp("report_browser")
     generate(root / "ds", count=N_IMAGES, seed=5, cfg=GeneratorConfig(res=32, spp=4), progress=False)
     recs = read_manifest(root / "ds")

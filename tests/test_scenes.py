@@ -11,7 +11,7 @@ import sys
 import numpy as np
 import pytest
 
-from relight.scene.sampling import GeneratorConfig
+from relight.generator.sampling import GeneratorConfig
 from relight.scene.spec import load_scene
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

@@ -33,7 +33,7 @@ def meshes():
 def test_scene_sampler_draws_every_family_and_only_those_asked():
     # the generator's own draw (not the list itself): 40 scenes of 1-3 objects reach all
     # six families; a config restricted to one family draws only that one
-    from relight.scene.sampling import GeneratorConfig, sample_scene
+    from relight.generator.sampling import GeneratorConfig, sample_scene
     drawn = {o.family for i in range(40) for o in sample_scene(GeneratorConfig(), 5, i).objects}
     assert drawn == {"superquadric", "torus", "revolved", "extrusion", "blob", "primitive"}
     only = {o.family for i in range(10)

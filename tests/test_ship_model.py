@@ -59,7 +59,7 @@ def test_generate_command_of_the_sid2_paper_preset(ship_model):
     """A card of `--preset sid2-paper` gives the command with the preset (its settings not
     repeated) and the backgrounds it used; a card that only shares some of them does not."""
     import dataclasses
-    from relight.scene.sampling import sid2_paper_config
+    from relight.generator.sampling import sid2_paper_config
     for backgrounds in ("library", "unseen"):
         config = json.loads(json.dumps(dataclasses.asdict(sid2_paper_config(backgrounds=backgrounds, res=64))))
         cmd, note = ship_model.generate_command({"seed": 8, "spp": 16, "config": config}, "d", 200)
@@ -109,9 +109,9 @@ def test_architecture_text_names_each_encoders_modules(ship_model):
 
 @pytest.fixture(scope="module")
 def world(tmp_path_factory):
-    from relight.dataset import generate
+    from relight.generator.run import generate
     from relight.net.train import TrainConfig, train
-    from relight.scene.sampling import GeneratorConfig
+    from relight.generator.sampling import GeneratorConfig
     root = tmp_path_factory.mktemp("ship")
     cfg = GeneratorConfig(res=RES, target_rmse=0.05)
     generate(root / "train", count=8, seed=21, cfg=cfg, progress=False)

@@ -14,7 +14,7 @@ import pytest
 
 from relight import colour
 from relight.scene import textures
-from relight.scene.sampling import GeneratorConfig, SID2_PAPER_PRESET, sample_scene, sid2_paper_config
+from relight.generator.sampling import GeneratorConfig, SID2_PAPER_PRESET, sample_scene, sid2_paper_config
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 

@@ -3,7 +3,7 @@ import json
 
 import pytest
 
-from relight.scene.sampling import GeneratorConfig, sample_scene
+from relight.generator.sampling import GeneratorConfig, sample_scene
 from relight.scene.spec import SceneFileError, SceneSpec, load_scene
 
 

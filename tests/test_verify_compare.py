@@ -26,8 +26,8 @@ TILT_DROP_DEG = 30.0          # the known move of the light toward the horizon
 
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory):
-    from relight.dataset import generate
-    from relight.scene.sampling import GeneratorConfig
+    from relight.generator.run import generate
+    from relight.generator.sampling import GeneratorConfig
     path = tmp_path_factory.mktemp("verify_ds") / "ds"
     generate(path, count=N_IMAGES, seed=11, cfg=GeneratorConfig(res=RES, spp=SPP), progress=False)
     return str(path)

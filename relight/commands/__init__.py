@@ -11,3 +11,7 @@ function (:mod:`relight.cli` dispatches to them).
 * :mod:`~relight.commands.demo`: ``demo``
 * :mod:`~relight.commands.argtypes`: the shared argument types (bounded numbers, ...)
 """
+
+__all__ = [
+    "argtypes", "blender", "data", "demo", "inverse", "net", "probe", "verify",
+]

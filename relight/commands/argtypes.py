@@ -5,6 +5,15 @@ absurdly large values are refused by argparse (one line, exit 2) before any work
 """
 from __future__ import annotations
 
+__all__ = [
+    "positive_int", "finite_float", "positive_float", "camera_tilt", "rgb", "int_in", "float_in",
+    "int_range_in", "MAX_RES", "MAX_SPP", "SEED_LIMIT", "MAX_COUNT", "MAX_RGB", "resolution", "net_resolution",
+    "spp", "max_depth", "seed", "threads", "workers", "loader_workers", "count", "limit", "columns", "epochs",
+    "batch_size", "patience", "width", "iterations", "learning_rate", "seconds", "minutes", "relative_rmse",
+    "light_pan", "light_tilt", "field_of_view", "object_parts", "scheduler", "add_scheduler_option",
+    "add_mirror_option", "bounded_rgb", "loss_weights",
+]
+
 import argparse
 import math
 

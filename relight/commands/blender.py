@@ -1,6 +1,10 @@
 """``relight export-blender``: the same scene file in Blender Cycles (the paper's renderer)."""
 from __future__ import annotations
 
+__all__ = [
+    "add_commands", "cmd_export_blender",
+]
+
 import importlib.util
 import os
 
@@ -24,19 +28,20 @@ def add_commands(sub) -> None:
 
 
 def cmd_export_blender(args) -> int:
-    from relight.blender import BlenderError, blender_python, run_blender_module
-    from relight.scene.spec import SceneFileError, load_scene
+    from relight.scene.blender import BlenderError, blender_python, run_blender_module
+    from relight.errors import OutputError
+    from relight.scene.spec import load_scene
     if not args.out.lower().endswith(".blend"):
-        raise SceneFileError(f"--out must name a .blend file, got {args.out}")
+        raise OutputError(f"--out must name a .blend file, got {args.out}")
     if args.render is not None and not args.render.lower().endswith(".exr"):
-        raise SceneFileError(f"--render must name an .exr file (linear radiance), got {args.render}")
+        raise OutputError(f"--render must name an .exr file (linear radiance), got {args.render}")
     spec = load_scene(args.scene)  # bad scene files fail here, before any Blender start
     threads = int(os.environ["RELIGHT_THREADS"]) if os.environ.get("RELIGHT_THREADS") else None
     if importlib.util.find_spec("bpy") is not None:
-        from relight.blender import export_and_render
+        from relight.scene.blender import export_and_render
         return export_and_render(spec, args.out, render_path=args.render, spp=args.spp, threads=threads)
     if blender_python() is None:
-        from relight.blender import INSTALL_HINT
+        from relight.scene.blender import INSTALL_HINT
         raise BlenderError(INSTALL_HINT)
     cmd = ["export", os.path.abspath(args.scene), "--out", os.path.abspath(args.out)]
     if args.render is not None:

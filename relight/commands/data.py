@@ -1,6 +1,10 @@
 """``relight generate`` and ``relight render``."""
 from __future__ import annotations
 
+__all__ = [
+    "add_commands", "cmd_generate_mid", "cmd_generate", "cmd_render",
+]
+
 import os
 import sys
 
@@ -71,7 +75,7 @@ def add_commands(sub) -> None:
 
 def cmd_generate_mid(args) -> int:
     from relight.fileio import check_outputs
-    from relight.mid import generate_mid, mid_config
+    from relight.experiments.mid.dataset import generate_mid, mid_config
     cfg = mid_config(args.config, res=args.res, spp=args.spp, max_depth=args.max_depth,
                      refused={"--workers": args.workers != 1, "--scheduler": args.scheduler,
                               "--sampler": args.sampler, "--colour-prior": args.colour_prior,
@@ -90,17 +94,17 @@ def cmd_generate_mid(args) -> int:
 def cmd_generate(args) -> int:
     if args.preset == "mid":
         return cmd_generate_mid(args)
-    from relight.dataset import generate
+    from relight.generator.run import generate
     from relight.fileio import check_outputs
-    from relight.scene.sampling import GeneratorConfig
+    from relight.generator.sampling import GeneratorConfig
     overrides = dict(res=args.res, spp=args.spp, max_depth=args.max_depth, sampler=args.sampler,
                      target_rmse=args.target_rmse, colour_prior=args.colour_prior, backgrounds=args.backgrounds,
                      object_parts=args.object_parts, mesh_dir=os.path.abspath(args.mesh_dir) if args.mesh_dir else None)
     cfg = GeneratorConfig.from_file(args.config, preset=args.preset, **overrides)
     check_outputs([args.out], [args.config, args.mesh_dir])
     if args.scheduler is not None and args.workers != 1:
-        from relight.dataset import DatasetError
-        raise DatasetError("--workers and --scheduler exclude each other (local:N gives N workers)")
+        from relight.errors import ConfigError
+        raise ConfigError("--workers and --scheduler exclude each other (local:N gives N workers)")
     stats = generate(args.out, args.count, seed=args.seed, cfg=cfg, workers=args.workers,
                      progress=not args.quiet, threads=args.threads, scheduler=args.scheduler)
     msg = f"{args.out}: {stats.written} images written, {stats.skipped} already there"

@@ -9,6 +9,10 @@ Re-running resumes the dataset and rewrites the reports.
 """
 from __future__ import annotations
 
+__all__ = [
+    "add_commands", "cmd_demo",
+]
+
 import os
 
 from relight.commands import argtypes as at
@@ -26,11 +30,11 @@ def add_commands(sub) -> None:
 
 def cmd_demo(args) -> int:
     from relight import metrics
-    from relight.dataset import generate
+    from relight.generator.run import generate
     from relight.fileio import check_folder_target, check_outputs
     from relight.net.evaluate import evaluate
     from relight.net.predict import load_model
-    from relight.scene.sampling import GeneratorConfig
+    from relight.generator.sampling import GeneratorConfig
     from relight.verify.compare import compare_predictions
     from relight.verify.report import check_out, write_report
     data = os.path.join(args.out, "dataset")

@@ -2,6 +2,10 @@
 constancy baselines)."""
 from __future__ import annotations
 
+__all__ = [
+    "add_commands", "cmd_invert", "cmd_baseline",
+]
+
 import dataclasses
 import os
 import sys

@@ -1,6 +1,10 @@
 """``relight train``, ``relight calibrate``, ``relight evaluate`` and ``relight predict``."""
 from __future__ import annotations
 
+__all__ = [
+    "add_commands", "cmd_train", "cmd_calibrate", "cmd_evaluate", "cmd_predict",
+]
+
 import os
 
 from relight.commands import argtypes as at

@@ -1,6 +1,10 @@
 """``relight probe``: the paper's sphere procedure on a photograph of light probes."""
 from __future__ import annotations
 
+__all__ = [
+    "add_commands", "circle", "cmd_probe",
+]
+
 import os
 
 from relight.commands.argtypes import camera_tilt, field_of_view, positive_float

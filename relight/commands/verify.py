@@ -3,6 +3,11 @@ from-light|to-light``: thin argument parsing over :mod:`relight.verify.compare`,
 :mod:`relight.verify.report`, :mod:`relight.verify.figures` and :mod:`relight.verify.envmap`."""
 from __future__ import annotations
 
+__all__ = [
+    "add_commands", "cmd_compare", "cmd_spheres", "cmd_pole",
+    "envmap_width", "cmd_envmap_from_light", "cmd_envmap_to_light",
+]
+
 import os
 import sys
 

@@ -9,3 +9,7 @@
 * :mod:`relight.inverse.jobs`: batches of images to invert (dataset split or one
   scene), their starting directions, and the trace file.
 """
+
+__all__ = [
+    "ad", "colour_baselines", "jobs", "objective", "optimize",
+]

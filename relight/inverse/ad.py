@@ -63,6 +63,12 @@ Units: degrees of arc for ``du``/``dv``, metres, pixels for image positions.
 """
 from __future__ import annotations
 
+__all__ = [
+    "DEG_RAD", "RAY_OFFSET_M", "CAMERA_HIT_REL_TOL", "WELD_DECIMALS", "ADSettings", "light_frame", "Pinhole",
+    "plane_hit", "Occluders", "boundary_derivative", "ShadingAD", "ADJacobian", "vp_jacobian",
+    "ad_loss_gradient",
+]
+
 import math
 from dataclasses import dataclass
 

@@ -25,6 +25,12 @@ in :func:`write_colour_predictions`; :func:`read_colour_predictions` reads it to
 """
 from __future__ import annotations
 
+__all__ = [
+    "SHADES_OF_GRAY_P", "GRAY_EDGE_P", "GRAY_EDGE_SIGMA_PX", "ColourBaselineError", "minkowski_mean",
+    "gray_world", "white_patch", "shades_of_gray", "gray_edge", "METHODS", "estimate", "estimate_jobs",
+    "dataset_colour_errors", "write_colour_predictions", "read_colour_predictions",
+]
+
 import math
 
 import numpy as np
@@ -136,8 +142,8 @@ def estimate_jobs(name: str, jobs: list, progress: bool = True, scheduler=None) 
         return [_entry(name, *p) for p in tqdm(paths, desc=name, unit="img",
                                                disable=not progress or len(paths) < 50)]
     from relight import engine
-    return engine.map_ordered(scheduler, _estimate_shard, (name, paths), len(paths), name, progress,
-                              bar=len(paths) >= 50, mitsuba=False)
+    return engine.map_ordered(scheduler, _estimate_shard, (name, paths), len(paths), name,
+                              engine.ShardPlan(mitsuba=False, progress=progress), bar=len(paths) >= 50)
 
 
 def dataset_colour_errors(entries: list[dict], data_dir: str) -> np.ndarray:

@@ -3,6 +3,10 @@ their starting directions (grid, the network, a predictions file), the runs, and
 per-iteration trace file. ``relight invert`` and ``relight baseline`` call these."""
 from __future__ import annotations
 
+__all__ = [
+    "Job", "dataset_jobs", "network_starts", "file_starts", "invert_jobs", "TRACE_FIELDS", "write_trace_csv",
+]
+
 import csv
 from dataclasses import dataclass
 
@@ -87,8 +91,8 @@ def invert_jobs(jobs: list[Job], init: str, cfg, progress: bool = True,
         return [(job, _invert_one(job, start, cfg))
                 for job, start in tqdm(work, desc="invert", unit="img", disable=not progress)]
     from relight import engine
-    results = engine.map_ordered(scheduler, _invert_shard, (work, cfg), len(work), "invert", progress,
-                                 shard_size=1)   # seconds an image: one a task balances best
+    plan = engine.ShardPlan(shard_size=1, progress=progress)   # seconds an image: one a task balances best
+    results = engine.map_ordered(scheduler, _invert_shard, (work, cfg), len(work), "invert", plan)
     return [(job, res) for (job, _), res in zip(work, results)]
 
 

@@ -8,6 +8,10 @@ relative radius). See :mod:`relight.inverse.optimize` for the method.
 """
 from __future__ import annotations
 
+__all__ = [
+    "downsample", "colour_fit", "LightRenderer", "moved", "residual", "jacobian", "loss_gradient",
+]
+
 import dataclasses
 import math
 

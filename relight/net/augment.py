@@ -32,6 +32,15 @@ import numpy as np
 
 from relight import colour
 
+__all__ = [
+    "TONE_CURVES",
+    "HABLE_WHITE",
+    "HABLE_EXPOSURE_BIAS",
+    "AUGMENTS",
+    "hable",
+    "PipelineAugment",
+]
+
 TONE_CURVES = ("srgb", "gamma", "filmic")
 HABLE_WHITE = 11.2   # Hable's linear white point
 HABLE_EXPOSURE_BIAS = 2.0   # the gain before the curve in Hable's sample code

@@ -33,6 +33,11 @@ model now has (``head``/``last``: the refitted one; ``temperature``: the trained
 """
 from __future__ import annotations
 
+__all__ = [
+    "MODES", "MIN_IMAGES", "CalibrationConfig", "held_out_outputs", "fit_head", "calibrate_kappa",
+    "calibrate_model_file",
+]
+
 import copy
 import math
 import os

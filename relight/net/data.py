@@ -14,6 +14,11 @@ pan relative to the camera becomes ``360 - pan_rel``; in the 7-vector
 """
 from __future__ import annotations
 
+__all__ = [
+    "SPLITS", "prepare_srgb8", "flip_y", "flip_image", "dataset_folders", "folders_record", "LightDataset",
+    "linear_at_res",
+]
+
 import copy
 import os
 

@@ -18,6 +18,11 @@ Report folder contents:
 """
 from __future__ import annotations
 
+__all__ = [
+    "COLOUR_STATS", "run_model", "decode_outputs", "extra_fields", "cct_errors", "errors_from_y",
+    "run_model_on_engine", "evaluate",
+]
+
 import csv
 import json
 import os
@@ -171,7 +176,7 @@ def run_model_on_engine(model, dataset: LightDataset, batch_size: int, scheduler
     parts = {}
     engine.map_shards(scheduler, _model_shard, (model, dataset, batch_size, torch.get_num_threads()),
                       list(range(len(dataset))), lambda shard, value: parts.__setitem__(shard[0], value),
-                      mitsuba=False, shard_size=batch_size, progress=progress)
+                      engine.ShardPlan(mitsuba=False, shard_size=batch_size, progress=progress))
     values = [parts[k] for k in sorted(parts)]
     y = np.concatenate([v[0] for v in values]) if values else np.zeros((0, 7))
     has_kappa = bool(values) and values[0][1] is not None

@@ -10,6 +10,11 @@ tensor names or shapes -- raises :class:`ModelFileError` with a one-line reason.
 """
 from __future__ import annotations
 
+__all__ = [
+    "MODEL_FORMAT", "MODELS_DIR", "SHIPPED_NAME", "SHIPPED_MODEL", "save_model", "read_model_file",
+    "read_model_header", "load_model_file",
+]
+
 import json
 import os
 

@@ -17,6 +17,10 @@ three terms train unchanged; ``total`` stays the paper's loss and ``objective``
 """
 from __future__ import annotations
 
+__all__ = [
+    "COS_CLAMP", "NORM_EPS", "angular_error_rad", "LossWeights", "light_loss", "LightLoss",
+]
+
 from dataclasses import dataclass
 
 import torch

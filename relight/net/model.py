@@ -28,6 +28,13 @@ to predict the direction error without changing what the paper's terms train.
 """
 from __future__ import annotations
 
+__all__ = [
+    "ARCH_NAME", "PAPER_ARCH_NAME", "ARCHES", "COLOUR_FLOOR", "KAPPA_INIT", "LOG_KAPPA_RANGE", "PAPER_SIZES",
+    "NetConfig", "ConvBN", "SplitInception", "FactorisedInception7", "ExpandedInception", "GridReduction",
+    "PaperEncoder", "LightNet", "MirrorAveraged", "head_kappa", "count_parameters", "flops_per_image",
+    "camera_tilt_deg",
+]
+
 import math
 from dataclasses import asdict, dataclass
 

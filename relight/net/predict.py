@@ -29,7 +29,8 @@ IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".exr")
 ACHROMATIC_TOLERANCE = 2   # 8-bit sRGB code values between the channels of a grayscale pixel (JPEG rounding)
 
 __all__ = ["load_model", "predict_arrays", "predict_files", "list_images", "ModelFileError",
-           "DEFAULT_CAMERA_TILT_DEG", "is_achromatic"]
+           "DEFAULT_CAMERA_TILT_DEG", "is_achromatic",
+           "IMAGE_EXTENSIONS", "ACHROMATIC_TOLERANCE", "read_input", "image_ids"]
 
 
 def is_achromatic(srgb8: np.ndarray, tolerance: int = ACHROMATIC_TOLERANCE) -> bool:
@@ -52,6 +53,19 @@ def load_model(path: str | os.PathLike | None = None, mirror_average: bool = Fal
 
     Raises :class:`relight.net.io.ModelFileError` (one line) on a missing, corrupt or
     foreign file.
+
+    Args:
+        path: a ``.safetensors`` model file or a training run folder; ``None``: the
+            shipped model (``relight/models/sid2.safetensors``).
+        mirror_average: average each prediction with its mirror image's (about 1.8x the time).
+
+    Returns:
+        A :class:`~relight.net.model.LightNet` (or its mirror-averaging wrapper) in eval
+        mode; ``model.config.res`` is the input size in pixels.
+
+    >>> model = load_model()
+    >>> model.config.res, model.training
+    (128, False)
     """
     if path is None:
         if not os.path.isfile(SHIPPED_MODEL):
@@ -140,6 +154,12 @@ def predict_arrays(model, images_linear: list[np.ndarray], camera_tilt_deg: list
         ``camera_tilt_deg`` and ``camera_tilt_source`` (given / predicted / assumed),
         ``to_light_camera`` (unit vector, camera frame: x right, y up, z toward the camera)
         and, for a model with an out-of-distribution detector, ``ood`` and ``ood_score``.
+
+    >>> p = predict_arrays(load_model(), [np.full((64, 64, 3), 0.2, np.float32)], [45.0])[0]
+    >>> 0.0 <= p["pan_deg"] < 360.0, -90.0 <= p["tilt_deg"] <= 90.0, len(p["y"])
+    (True, True, 7)
+    >>> round(float(np.linalg.norm(p["rgb"])), 6), p["colour_reliable"]   # a grey image says nothing of colour
+    (1.0, False)
     """
     from relight.imageio import to_srgb8
     res = model.config.res
@@ -202,8 +222,26 @@ def image_ids(files: list[str]) -> list[str]:
 def predict_files(model, files: list[str], camera_tilt_deg: float | None = None) -> list[dict]:
     """Predictions for image files; each dict also has ``id``, ``file`` and ``assumed``
     (how its pixels were interpreted), and ``colour_reliable`` = False for a grayscale
-    image (:func:`is_achromatic`). ``camera_tilt_deg`` None: the model's own estimate
-    (camera head), else the paper's 45 degrees."""
+    image (:func:`is_achromatic`).
+
+    Args:
+        model: from :func:`load_model`.
+        files: image paths (PNG of any mode and depth, JPEG: sRGB; EXR: linear).
+        camera_tilt_deg: the camera tilt assumed for every image, degrees; None: the
+            model's own estimate (camera head), else the paper's 45 degrees.
+
+    Returns:
+        One dict per file, in order, with the fields of :func:`predict_arrays`.
+
+    >>> import os, tempfile
+    >>> from relight.imageio import write_png
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> path = os.path.join(tmp.name, "room.png")
+    >>> write_png(path, np.full((32, 48, 3), 0.3, np.float32))
+    >>> [(p["id"], p["file"] == path, p["colour_reliable"]) for p in predict_files(load_model(), [path])]
+    [('room', True, False)]
+    >>> tmp.cleanup()
+    """
     inputs, assumed, achromatic = [], [], []
     for f in files:
         x, how, grey = _read_input(f, model.config.res)

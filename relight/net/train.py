@@ -26,6 +26,12 @@ process (no ``torchrun``, or one rank) is exactly the single-process path.
 """
 from __future__ import annotations
 
+__all__ = [
+    "CHECKPOINT", "SETTINGS", "LOG", "LOG_FIELDS", "TrainConfig", "net_config", "plot_curves",
+    "distributed_rank_world", "train", "RESOURCE_KEYS",
+    "camera_loss", "with_camera_head",
+]
+
 import csv
 import json
 import math
@@ -209,17 +215,17 @@ def _save_checkpoint(path: str, state: dict) -> None:
 
 
 def _load_checkpoint(path: str) -> dict:
-    """The checkpoint's state, checked; :class:`DatasetError` (one line) if it is empty,
+    """The checkpoint's state, checked; :class:`TrainingError` (one line) if it is empty,
     corrupt, truncated or not a relight checkpoint."""
     try:
         state = torch.load(path, weights_only=True)
     except Exception as exc:  # noqa: BLE001 - torch raises many types for bad files
         text = str(exc).splitlines()[0][:100] if str(exc) else type(exc).__name__
-        raise DatasetError(f"{path}: cannot read checkpoint ({text}); delete it to start over") from None
+        raise TrainingError(f"{path}: cannot read checkpoint ({text}); delete it to start over") from None
     keys = ("model", "optimiser", "scheduler", "epoch", "history", "best_val_loss", "settings", "torch_rng")
     if not isinstance(state, dict) or any(k not in state for k in keys) \
             or not isinstance(state["settings"], dict) or not isinstance(state["history"], list):
-        raise DatasetError(f"{path}: not a relight training checkpoint; delete it to start over")
+        raise TrainingError(f"{path}: not a relight training checkpoint; delete it to start over")
     return state
 
 
@@ -261,7 +267,7 @@ def distributed_rank_world() -> tuple[int, int]:
         world = int(os.environ.get("WORLD_SIZE", "1") or 1)
         rank = int(os.environ.get("RANK", "0") or 0)
     except ValueError:
-        raise DatasetError("RANK and WORLD_SIZE must be integers (set by torchrun)") from None
+        raise TrainingError("RANK and WORLD_SIZE must be integers (set by torchrun)") from None
     return (rank, world) if world > 1 else (0, 1)
 
 
@@ -340,16 +346,23 @@ def _same_run(saved: dict, cfg: TrainConfig) -> bool:
     return all(saved.get(k, LATER_DEFAULTS.get(k)) == v for k, v in now.items() if k not in RESOURCE_KEYS)
 
 
-def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, ddp=None) -> dict:
-    """The training loop; ``ddp`` is ``(rank, world)`` under torchrun (rank 0 writes)."""
-    from torch.utils.data import DataLoader
-    from tqdm import tqdm
-    writer = ddp is None or ddp[0] == 0
-    if ddp is not None:
-        import torch.distributed as dist
-        from torch.nn.parallel import DistributedDataParallel
-        from torch.utils.data.distributed import DistributedSampler
-        dist.barrier()   # rank 0 holds the folder lock from here on
+@dataclass
+class _Run:
+    """A training run as restored or started: what the epochs update."""
+    model: LightNet
+    optimiser: torch.optim.Optimizer
+    scheduler: torch.optim.lr_scheduler.ReduceLROnPlateau
+    train_set: LightDataset
+    val_set: LightDataset
+    start_epoch: int
+    rows: list
+    best: float
+    net: object = None          # the DistributedDataParallel wrapper under torchrun
+
+
+def _restore(cfg: TrainConfig, out_dir: str, resume: bool, ddp, writer: bool) -> _Run:
+    """Check the folder's run, seed, load ``--init`` and the data, and restore the
+    checkpoint when resuming; writes ``settings.json`` (rank 0)."""
     ckpt_path = os.path.join(out_dir, CHECKPOINT)
     if os.path.exists(ckpt_path) and not resume:
         try:
@@ -359,7 +372,7 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, 
             saved = {}
         if not (isinstance(saved, dict) and _same_run(saved, cfg)):
             raise TrainingError(f"{out_dir} already holds a run with other settings; add --resume to "
-                               "continue it with these settings or use a new --out")
+                                "continue it with these settings or use a new --out")
         resume = True   # the identical command: continue where it stopped
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
@@ -400,8 +413,8 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, 
             start_epoch, rows, best = int(state["epoch"]), list(state["history"]), float(state["best_val_loss"])
             torch.set_rng_state(state["torch_rng"])
         except (RuntimeError, ValueError, TypeError, KeyError, AttributeError) as exc:
-            raise DatasetError(f"{ckpt_path}: checkpoint does not match this network "
-                               f"({str(exc).splitlines()[0][:100]}); delete it to start over") from None
+            raise TrainingError(f"{ckpt_path}: checkpoint does not match this network "
+                                f"({str(exc).splitlines()[0][:100]}); delete it to start over") from None
     settings = cfg.to_dict() | {"out_dir": out_dir, "parameters": count_parameters(model)}
     if init_model is not None:   # the starting point: the loaded model's val loss before any step
         if state is None:
@@ -415,7 +428,121 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, 
                 pass
     if writer:
         write_json(os.path.join(out_dir, SETTINGS), settings)
-    net = DistributedDataParallel(_KappaForward(model)) if ddp is not None else None
+    net = None
+    if ddp is not None:
+        from torch.nn.parallel import DistributedDataParallel
+        net = DistributedDataParallel(_KappaForward(model))
+    return _Run(model, optimiser, scheduler, train_set, val_set, start_epoch, rows, best, net)
+
+
+def _train_epoch(run: _Run, cfg: TrainConfig, epoch: int, progress: bool, ddp) -> tuple[dict, int, float]:
+    """One pass over the training split: ``(summed loss parts, images seen, seconds)``;
+    under torchrun the sums cover every process's share."""
+    from torch.utils.data import DataLoader
+    from tqdm import tqdm
+    model, train_set = run.model, run.train_set
+    train_set.epoch = epoch
+    if ddp is None:
+        sampler = _epoch_order(len(train_set), cfg.seed, epoch)
+    else:
+        from torch.utils.data.distributed import DistributedSampler
+        sampler = DistributedSampler(train_set, num_replicas=ddp[1], rank=ddp[0], shuffle=True,
+                                     seed=cfg.seed, drop_last=False)
+        sampler.set_epoch(epoch)
+    loader = DataLoader(train_set, batch_size=cfg.batch_size, num_workers=cfg.workers,
+                        sampler=sampler, drop_last=False)
+    model.train()
+    sums, seen, t0 = {"total": 0.0, "pan": 0.0, "tilt": 0.0, "colour": 0.0, "kappa_nll": 0.0,
+                      "camera": 0.0}, 0, time.perf_counter()
+    bar = tqdm(loader, desc=f"epoch {epoch + 1}/{cfg.epochs}", disable=not progress, leave=False,
+               dynamic_ncols=True)
+    for x, y, index in bar:
+        y_pred, kappa, camera = model.forward_full(x, calibrated=False) if run.net is None else run.net(x)
+        tilts = _camera_tilts(train_set, index)
+        parts = light_loss(y_pred, y, cfg.loss_weights, parts=True, kappa=kappa,
+                           camera_tilt_deg=tilts if kappa is not None else None)
+        parts["camera"] = None
+        if camera is not None:   # the camera-tilt head (--camera-weight)
+            parts["camera"] = camera_loss(camera, tilts)
+            parts["objective"] = parts["objective"] + cfg.camera_weight * parts["camera"]
+        run.optimiser.zero_grad(set_to_none=True)
+        parts["objective"].backward()
+        run.optimiser.step()
+        for k in sums:
+            if parts[k] is not None:
+                sums[k] += float(parts[k].detach()) * len(x)
+        seen += len(x)
+        bar.set_postfix(loss=f"{sums['total'] / seen:.4f}")
+    if ddp is not None:   # the log's training figures cover every process's share
+        import torch.distributed as dist
+        totals = torch.tensor([*sums.values(), float(seen)], dtype=torch.float64)
+        dist.all_reduce(totals)
+        sums, seen = dict(zip(sums, totals[:-1].tolist())), int(totals[-1])
+        for buffer in model.buffers():   # batch-norm statistics: rank 0's, as DDP's forward does
+            dist.broadcast(buffer, 0)
+    return sums, seen, t0
+
+
+def _validate(run: _Run, cfg: TrainConfig, evaluation_set: LightDataset, train_kappa_nll: float) -> tuple:
+    """The loss and the errors on ``evaluation_set``, and kappa's temperature fitted there
+    (stored in the model): ``(val_loss, errors in degrees by metric, calibration figures)``."""
+    model = run.model
+    y_val, kappa_val, camera_val = run_model(model, evaluation_set, cfg.batch_size * 4, with_kappa=True,
+                                             with_camera=True)
+    with torch.no_grad():
+        val_loss = float(light_loss(torch.from_numpy(y_val),
+                                    torch.from_numpy(np.stack([evaluation_set.target(i) for i in
+                                                               range(len(evaluation_set))])).float(),
+                                    cfg.loss_weights))
+    camera_log = {}
+    if camera_val is not None:   # the camera head's error, and its term of the val loss
+        true_tilts = evaluation_set.truth()["camera_tilt_deg"]
+        camera_log = {"val_camera_tilt_deg": float(np.mean(np.abs(camera_val - true_tilts)))}
+        t = np.radians(camera_val)
+        val_loss += cfg.camera_weight * float(camera_loss(torch.from_numpy(np.stack([np.sin(t), np.cos(t)], 1)),
+                                                          torch.from_numpy(true_tilts)))
+    errs = errors_from_y(y_val, evaluation_set.truth())
+    calibration = {}
+    if kappa_val is not None:   # temperature scaling of kappa on val (the model stores T)
+        raw = kappa_val * float(model.kappa_temperature)
+        temperature = fit_temperature(raw, errs["direction"])
+        model.kappa_temperature.fill_(temperature)
+        summary = uncertainty_summary(raw / temperature, errs["direction"])
+        calibration = {"train_kappa_nll": train_kappa_nll, "val_kappa_nll": summary["nll_mean"],
+                       "val_cone90_cover": summary["cone90_coverage"], "kappa_temperature": temperature}
+    return val_loss, errs, calibration | camera_log
+
+
+def _save(run: _Run, cfg: TrainConfig, out_dir: str, epoch: int, val_loss: float, seen: int,
+          calibration: dict) -> None:
+    """After an epoch (rank 0): last and best weights, the checkpoint, the log and its curves."""
+    model = run.model
+    info = {"epoch": epoch + 1, "val_loss": val_loss, "data_dir": folders_record(cfg.data_dir),
+            "n_train": seen, "settings": cfg.to_dict(),
+            **({"kappa_temperature": calibration["kappa_temperature"]} if "kappa_temperature" in calibration else {})}
+    save_model(os.path.join(out_dir, "last.safetensors"), model, info)
+    if val_loss < run.best:
+        run.best = val_loss
+        save_model(os.path.join(out_dir, "best.safetensors"), model, info)
+    _save_checkpoint(os.path.join(out_dir, CHECKPOINT),
+                     {"model": model.state_dict(), "optimiser": run.optimiser.state_dict(),
+                      "scheduler": run.scheduler.state_dict(), "epoch": epoch + 1,
+                      "history": run.rows, "best_val_loss": run.best, "settings": cfg.to_dict(),
+                      "torch_rng": torch.get_rng_state()})
+    _write_log(os.path.join(out_dir, LOG), run.rows)
+    plot_curves(run.rows, os.path.join(out_dir, "curves.png"))
+
+
+def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, ddp=None) -> dict:
+    """The training loop; ``ddp`` is ``(rank, world)`` under torchrun (rank 0 writes):
+    :func:`_restore`, then per epoch :func:`_train_epoch`, :func:`_validate` and :func:`_save`."""
+    from tqdm import tqdm
+    writer = ddp is None or ddp[0] == 0
+    if ddp is not None:
+        import torch.distributed as dist
+        dist.barrier()   # rank 0 holds the folder lock from here on
+    run = _restore(cfg, out_dir, resume, ddp, writer)
+    start_epoch, rows = run.start_epoch, run.rows
     if start_epoch >= cfg.epochs:
         if progress:
             print(f"{out_dir}: already trained for {start_epoch} epochs (asked {cfg.epochs})")
@@ -435,100 +562,29 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, 
                            "resume with --resume to continue")
             break
         if cfg.grow and epoch > start_epoch:
-            train_set.refresh(), val_set.refresh()
+            run.train_set.refresh(), run.val_set.refresh()
             if ddp is not None:
-                _ddp_agree(train_set), _ddp_agree(val_set)
-        evaluation_set = val_set if len(val_set) else train_set.unaugmented()
-        train_set.epoch = epoch
-        if ddp is None:
-            sampler = _epoch_order(len(train_set), cfg.seed, epoch)
-        else:
-            sampler = DistributedSampler(train_set, num_replicas=ddp[1], rank=ddp[0], shuffle=True,
-                                         seed=cfg.seed, drop_last=False)
-            sampler.set_epoch(epoch)
-        loader = DataLoader(train_set, batch_size=cfg.batch_size, num_workers=cfg.workers,
-                            sampler=sampler, drop_last=False)
-        model.train()
-        sums, seen, t0 = {"total": 0.0, "pan": 0.0, "tilt": 0.0, "colour": 0.0, "kappa_nll": 0.0,
-                          "camera": 0.0}, 0, time.perf_counter()
-        bar = tqdm(loader, desc=f"epoch {epoch + 1}/{cfg.epochs}", disable=not progress, leave=False,
-                   dynamic_ncols=True)
-        for x, y, index in bar:
-            y_pred, kappa, camera = model.forward_full(x, calibrated=False) if net is None else net(x)
-            tilts = _camera_tilts(train_set, index)
-            parts = light_loss(y_pred, y, cfg.loss_weights, parts=True, kappa=kappa,
-                               camera_tilt_deg=tilts if kappa is not None else None)
-            parts["camera"] = None
-            if camera is not None:
-                parts["camera"] = camera_loss(camera, tilts)
-                parts["objective"] = parts["objective"] + cfg.camera_weight * parts["camera"]
-            optimiser.zero_grad(set_to_none=True)
-            parts["objective"].backward()
-            optimiser.step()
-            for k in sums:
-                if parts[k] is not None:
-                    sums[k] += float(parts[k].detach()) * len(x)
-            seen += len(x)
-            bar.set_postfix(loss=f"{sums['total'] / seen:.4f}")
-        if ddp is not None:   # the log's training figures cover every process's share
-            totals = torch.tensor([*sums.values(), float(seen)], dtype=torch.float64)
-            dist.all_reduce(totals)
-            sums, seen = dict(zip(sums, totals[:-1].tolist())), int(totals[-1])
-            for buffer in model.buffers():   # batch-norm statistics: rank 0's, as DDP's forward does
-                dist.broadcast(buffer, 0)
+                _ddp_agree(run.train_set), _ddp_agree(run.val_set)
+        evaluation_set = run.val_set if len(run.val_set) else run.train_set.unaugmented()
+        sums, seen, t0 = _train_epoch(run, cfg, epoch, progress, ddp)
         train_time = time.perf_counter() - t0
-        y_val, kappa_val, camera_val = run_model(model, evaluation_set, cfg.batch_size * 4, with_kappa=True,
-                                                 with_camera=True)
-        with torch.no_grad():
-            val_loss = float(light_loss(torch.from_numpy(y_val),
-                                        torch.from_numpy(np.stack([evaluation_set.target(i) for i in
-                                                                   range(len(evaluation_set))])).float(),
-                                        cfg.loss_weights))
-        camera_log = {}
-        if camera_val is not None:
-            true_tilts = evaluation_set.truth()["camera_tilt_deg"]
-            camera_log = {"train_camera": sums["camera"] / seen,
-                          "val_camera_tilt_deg": float(np.mean(np.abs(camera_val - true_tilts)))}
-            val_loss += cfg.camera_weight * float(camera_loss(
-                torch.from_numpy(np.stack([np.sin(np.radians(camera_val)), np.cos(np.radians(camera_val))], 1)),
-                torch.from_numpy(true_tilts)))
-        errs = errors_from_y(y_val, evaluation_set.truth())
-        calibration = {}
-        if kappa_val is not None:   # temperature scaling of kappa on val (the model stores T)
-            raw = kappa_val * float(model.kappa_temperature)
-            temperature = fit_temperature(raw, errs["direction"])
-            model.kappa_temperature.fill_(temperature)
-            summary = uncertainty_summary(raw / temperature, errs["direction"])
-            calibration = {"train_kappa_nll": sums["kappa_nll"] / seen, "val_kappa_nll": summary["nll_mean"],
-                           "val_cone90_cover": summary["cone90_coverage"], "kappa_temperature": temperature}
-        scheduler.step(val_loss)
-        row = {"epoch": epoch + 1, "lr": optimiser.param_groups[0]["lr"], "n_train": seen,
+        val_loss, errs, calibration = _validate(run, cfg, evaluation_set, sums["kappa_nll"] / seen)
+        run.scheduler.step(val_loss)
+        row = {"epoch": epoch + 1, "lr": run.optimiser.param_groups[0]["lr"], "n_train": seen,
                "n_val": len(evaluation_set), "train_loss": sums["total"] / seen, "train_pan": sums["pan"] / seen,
                "train_tilt": sums["tilt"] / seen, "train_colour_rad": sums["colour"] / seen, "val_loss": val_loss,
                **{f"val_{m}_deg": float(np.mean(e)) for m, e in errs.items()},
                "epoch_time_s": time.perf_counter() - t0, "train_img_per_s": seen / train_time, **calibration,
-               **camera_log}
+               **({"train_camera": sums["camera"] / seen} if "val_camera_tilt_deg" in calibration else {})}
         rows.append(row)
         if not writer:
             continue
-        info = {"epoch": epoch + 1, "val_loss": val_loss, "data_dir": folders_record(cfg.data_dir),
-                "n_train": seen, "settings": cfg.to_dict(),
-                **({"kappa_temperature": calibration["kappa_temperature"]} if calibration else {})}
-        save_model(os.path.join(out_dir, "last.safetensors"), model, info)
-        if val_loss < best:
-            best = val_loss
-            save_model(os.path.join(out_dir, "best.safetensors"), model, info)
-        _save_checkpoint(ckpt_path, {"model": model.state_dict(), "optimiser": optimiser.state_dict(),
-                                     "scheduler": scheduler.state_dict(), "epoch": epoch + 1,
-                                     "history": rows, "best_val_loss": best, "settings": cfg.to_dict(),
-                                     "torch_rng": torch.get_rng_state()})
-        _write_log(os.path.join(out_dir, LOG), rows)
-        plot_curves(rows, os.path.join(out_dir, "curves.png"))
+        _save(run, cfg, out_dir, epoch, val_loss, seen, calibration)
         if progress:
             tqdm.write(f"epoch {epoch + 1}/{cfg.epochs}: loss {row['train_loss']:.4f} val {val_loss:.4f} | "
                        f"val mean deg: direction {row['val_direction_deg']:.2f} pan {row['val_pan_deg']:.2f} "
                        f"tilt {row['val_tilt_deg']:.2f} colour {row['val_colour_deg']:.2f} | "
                        + (f"90% cone covers {100 * row['val_cone90_cover']:.0f}% (T {row['kappa_temperature']:.2f}) | "
-                          if calibration else "")
+                          if "val_cone90_cover" in calibration else "")
                        + f"lr {row['lr']:.1e} | {seen} img, {row['train_img_per_s']:.1f} img/s")
     return rows[-1]

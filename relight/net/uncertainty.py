@@ -22,6 +22,12 @@ for large kappa the angle is Rayleigh with scale ``1 / sqrt(kappa)`` radians).
 """
 from __future__ import annotations
 
+__all__ = [
+    "CONE_LEVEL", "RELIABILITY_LEVELS", "LOG_T_BOUNDS", "PAIR_EPS", "LOG_2PI", "vmf_nll", "vmf_nll_np",
+    "coverage_probability", "cone_radius_deg", "pan_halfwidth_deg", "direction_from_y", "direction_nll",
+    "fit_temperature", "spearman", "uncertainty_summary", "format_summary", "plot_reliability",
+]
+
 import math
 import os
 

@@ -10,3 +10,7 @@ a chrome sphere's highlight gives the direction, a gray sphere's shading the col
   refinement, chrome or diffuse).
 * :mod:`relight.probe.run`: ``relight probe`` as one library call, with the QA overlay.
 """
+
+__all__ = [
+    "detect", "geometry", "ortho", "run",
+]

@@ -17,6 +17,15 @@ hard terminator).
 """
 from __future__ import annotations
 
+__all__ = [
+    "EDGE_SIGMA_PX", "EDGE_ANGLES", "EDGE_MIN_FRACTION", "REJECT_ROUNDS", "REJECT_SIGMAS", "REJECT_MIN_PX",
+    "EDGE_INLIER_PX", "SUPPORT_BAND_FRACTION", "MIN_EDGE_SUPPORT", "MIN_RADIUS_FRACTION",
+    "MAX_RADIUS_FRACTION", "MAX_CANDIDATES", "CHROME_MIN_CONTRAST", "CHROME_MIN_BLOB_PX",
+    "CHROME_MAX_BLOB_FRACTION", "CHROME_MIN_EXCESS", "DIFFUSE_MAX_RESIDUAL", "TRIM_FRACTION",
+    "read_probe_image", "load_mask", "edge_points", "refine_sphere", "sphere_features", "hough_circles",
+    "find_spheres", "is_chrome", "is_diffuse", "pick_sphere",
+]
+
 import math
 import os
 
@@ -47,7 +56,7 @@ DIFFUSE_MAX_RESIDUAL = 0.3     # diffuse: a shading model fits within 30% rms
 TRIM_FRACTION = 0.01           # ... leaving out the worst 1% of pixels (glints, hot pixels)
 
 
-def load_image(path: str, linear: bool = False) -> tuple[np.ndarray, float | None, str]:
+def read_probe_image(path: str, linear: bool = False) -> tuple[np.ndarray, float | None, str]:
     """Read an image as linear RGB ``(H, W, 3)`` float64.
 
     8- and 16-bit PNG/JPEG/TIFF are sRGB-decoded unless ``linear`` (16-bit files from
@@ -71,7 +80,7 @@ def load_image(path: str, linear: bool = False) -> tuple[np.ndarray, float | Non
 
 def load_mask(path: str) -> np.ndarray:
     """A mask image: True where the pixel is brighter than half of full scale."""
-    image, _, _ = load_image(path, linear=True)
+    image, _, _ = read_probe_image(path, linear=True)
     return image.mean(-1) > 0.5
 
 

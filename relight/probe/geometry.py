@@ -25,11 +25,21 @@ gives sub-pixel localisation, clipped or not.
 """
 from __future__ import annotations
 
+__all__ = [
+    "HIGHLIGHT_FRACTION", "TIE_FRACTION", "MAX_LIGHT_SPREAD_DEG", "CORE_RIM_PX", "MERGED_FRACTION",
+    "RIM_EXCLUDE_PX", "MAX_RIM_ANGLE_DEG", "LIT_FRACTION", "DIFFUSE_RIM_FRACTION", "ORTHO_DEPTH",
+    "OUTLINE_LOSS_SCALE_PX", "Camera", "Sphere", "sphere_from_cone", "sphere_from_circle", "fit_sphere",
+    "mask_outline_points", "sphere_from_mask", "outline_circle", "outline_polygon", "bounding_box", "surface",
+    "reflected_direction", "predict_highlight", "Highlight", "sphere_pixels", "locate_highlight",
+    "diffuse_light",
+]
+
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import ndimage, optimize
+from relight import frames
 from relight.errors import ProbeError
 
 HIGHLIGHT_FRACTION = 0.5       # highlight candidates: pixels >= half the brightest sphere pixel
@@ -157,9 +167,7 @@ def fit_sphere(camera: Camera, x, y, robust: bool = True) -> Sphere:
     if not np.isfinite(norm) or norm <= 1.0:
         raise ProbeError("could not fit a sphere to the outline (points not on a cone)")
     a0 = ap / norm
-    e1 = np.cross(a0, [0.0, 1.0, 0.0] if abs(a0[1]) < 0.9 else [1.0, 0.0, 0.0])
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(a0, e1)
+    e1, e2 = frames.perpendicular_pair(a0)
     scale = camera.pixel_scale(a0)
 
     def axis(p):
@@ -219,9 +227,7 @@ def outline_polygon(camera: Camera, sphere: Sphere, n: int = 128) -> tuple[np.nd
         p = camera.project(c + sphere.radius * np.stack([np.cos(t), np.sin(t), 0 * t], -1))
         return p[:, 0], p[:, 1]
     a = c / np.linalg.norm(c)
-    e1 = np.cross(a, [0.0, 1.0, 0.0] if abs(a[1]) < 0.9 else [1.0, 0.0, 0.0])
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(a, e1)
+    e1, e2 = frames.perpendicular_pair(a)
     alpha = math.asin(min(sphere.radius / np.linalg.norm(c), 1.0))
     d = math.cos(alpha) * a + math.sin(alpha) * (np.cos(t)[:, None] * e1 + np.sin(t)[:, None] * e2)
     p = camera.project(d)
@@ -296,7 +302,8 @@ class Highlight:
 
 def _luminance(image: np.ndarray) -> np.ndarray:
     img = np.asarray(image, np.float64)
-    return img if img.ndim == 2 else img[..., :3] @ np.array([0.2126, 0.7152, 0.0722])
+    from relight.colour import luminance
+    return img if img.ndim == 2 else luminance(img)
 
 
 def sphere_pixels(camera: Camera, sphere: Sphere, mask: np.ndarray | None = None,

@@ -13,6 +13,11 @@ Images are linear RGB ``(H, W, 3)``; masks are boolean ``(H, W)``.
 """
 from __future__ import annotations
 
+__all__ = [
+    "HIGHLIGHT_FRACTION", "LIT_FRACTION", "RIM_MARGIN", "Circle", "fit_circle", "sphere_normals",
+    "chrome_light_direction", "diffuse_light",
+]
+
 from dataclasses import dataclass
 
 import numpy as np

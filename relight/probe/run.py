@@ -3,6 +3,10 @@ overlay) out. See :mod:`relight.probe.geometry` for the geometry and
 :mod:`relight.probe.detect` for finding the spheres."""
 from __future__ import annotations
 
+__all__ = [
+    "ProbeConfig", "ProbeResult", "locate_sphere", "run_probe", "write_qa",
+]
+
 import math
 from dataclasses import dataclass
 
@@ -105,7 +109,7 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
     chrome_circle = None
     candidates: list = []      # spheres found automatically, shared when both are in one image
     if cfg.chrome:
-        image, clip, how = detect.load_image(cfg.chrome, cfg.linear)
+        image, clip, how = detect.read_probe_image(cfg.chrome, cfg.linear)
         camera = cfg.camera(image.shape[1], image.shape[0])
         sphere, mask, found = locate_sphere(image, camera, "chrome", cfg.chrome_circle, cfg.chrome_mask, cfg.refine,
                                             candidates=candidates)
@@ -125,7 +129,7 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
         result.camera, result.chrome_image, result.chrome_sphere, result.highlight = camera, image, sphere, hl
     if cfg.diffuse:
         same = cfg.diffuse == cfg.chrome
-        image = result.chrome_image if same else detect.load_image(cfg.diffuse, cfg.linear)[0]
+        image = result.chrome_image if same else detect.read_probe_image(cfg.diffuse, cfg.linear)[0]
         camera = cfg.camera(image.shape[1], image.shape[0])
         exclude = [chrome_circle] if same and chrome_circle is not None else []
         sphere, mask, found = locate_sphere(image, camera, "diffuse", cfg.diffuse_circle, cfg.diffuse_mask,

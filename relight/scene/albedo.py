@@ -28,11 +28,19 @@ All albedos are linear RGB in [ALBEDO_MIN, ALBEDO_MAX] (textures) or [0, 1]
 """
 from __future__ import annotations
 
+__all__ = [
+    "PRIORS", "DEFAULT_PRIOR", "ALBEDO_MIN", "ALBEDO_MAX", "OBJECT_RANGE", "MUNSELL_Y_RANGE",
+    "munsell_albedos", "hsv_texture_albedos", "texture_colours", "object_reflectance", "box_direction_logpdf",
+    "CHROMA_BINS", "chromaticity", "chromaticity_log_density", "scaled_chromaticity_logpdf",
+    "shared_hue_logpdf", "posterior_mean_light", "ideal_observer_errors", "scene_prior",
+    "pastel_albedos",
+]
+
 import functools
 
 import numpy as np
 
-from relight.colour import srgb_decode
+from relight.colour import luminance, srgb_decode
 
 PRIORS: tuple[str, ...] = ("hsv", "munsell", "mixture", "pastel")
 DEFAULT_PRIOR = "hsv"
@@ -105,7 +113,7 @@ def texture_colours(rng: np.random.Generator, n: int, prior: str = "hsv") -> lis
         table = munsell_albedos()
         idx = rng.integers(0, len(table), n)
         if n > 1:  # contrast: colour 1 at least 2x lighter or darker than colour 0
-            lum = table @ np.array([0.2126, 0.7152, 0.0722])
+            lum = luminance(table)
             for _ in range(50):
                 a, b = lum[idx[0]], lum[idx[1]]
                 if max(a, b) >= 2.0 * min(a, b):

@@ -46,6 +46,10 @@ a variant switch)::
 """
 from __future__ import annotations
 
+__all__ = [
+    "PLUGIN", "RoughDiffuse", "register",
+]
+
 import importlib
 import math
 import sys

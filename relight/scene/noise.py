@@ -20,6 +20,10 @@ two, ``multijitter`` a product of two close integers).
 """
 from __future__ import annotations
 
+__all__ = [
+    "DEFAULT_SAMPLER", "DEFAULT_TARGET_RMSE", "CALIBRATION", "relative_rmse", "spp_for_target",
+]
+
 import numpy as np
 
 DEFAULT_SAMPLER = "multijitter"
@@ -61,12 +65,3 @@ def spp_for_target(target_rmse: float, sampler: str = DEFAULT_SAMPLER) -> int:
     raise ValueError(f"target relative RMSE {target_rmse} is below what {sampler} reaches at "
                      f"{best_spp} spp ({best}); give --spp instead")
 
-
-def exact_spp(sampler: str, spp: int) -> int:
-    """The sample count Mitsuba actually takes for ``spp`` (``multijitter`` rounds up to
-    a product of two close integers, e.g. 32 -> 35); passing it avoids Mitsuba's
-    rounding warning and changes nothing in the image."""
-    if sampler == "multijitter":
-        rows = max(1, int(np.sqrt(spp)))
-        return rows * ((spp + rows - 1) // rows)
-    return int(spp)

@@ -27,6 +27,12 @@ Conventions
 """
 from __future__ import annotations
 
+__all__ = [
+    "FAMILIES", "PRIMITIVE_KINDS", "OUTLINE_KINDS", "DEFAULT_NU", "DEFAULT_NV", "MIN_HEIGHT", "MAX_HEIGHT",
+    "BEVEL", "Mesh", "grid_faces", "vertex_normals", "sample_shape_params", "make_mesh", "MAX_PARTS",
+    "part_labels",
+]
+
 import math
 from dataclasses import dataclass
 

@@ -10,6 +10,11 @@ exactly), never as pixels or vertices; user meshes are stored as a file path.
 """
 from __future__ import annotations
 
+__all__ = [
+    "SCENE_FORMAT", "CameraSpec", "LightSpec", "RoomSpec", "ObjectSpec", "SAMPLERS", "LEGACY_SAMPLER",
+    "RenderSpec", "SceneSpec", "load_scene",
+]
+
 import dataclasses
 import json
 import math
@@ -287,7 +292,20 @@ def load_scene(path: str | os.PathLike) -> SceneSpec:
     """Read a scene file; :class:`SceneFileError` names the file on any problem.
 
     A relative ``mesh_path`` is taken relative to the scene file's folder, so a
-    scene and its meshes can be moved together (``scenes/meshes/``)."""
+    scene and its meshes can be moved together (``scenes/meshes/``).
+
+    Args:
+        path: a ``relight.scene/v1`` JSON file.
+
+    Returns:
+        The :class:`SceneSpec`: camera and light (metres, degrees, linear unit-norm
+        ``rgb``), room, objects and render settings (``res`` pixels, ``spp``, seed).
+
+    >>> import os, relight
+    >>> spec = load_scene(os.path.join(os.path.dirname(relight.__file__), "..", "scenes", "sphere_right.json"))
+    >>> spec.light.pan_deg, spec.light.tilt_deg, spec.camera.tilt_deg, spec.render.res
+    (90.0, 30.0, 30.0, 128)
+    """
     try:
         with open(path) as f:
             text = f.read()

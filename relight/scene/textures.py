@@ -22,6 +22,11 @@ from __future__ import annotations
 
 import functools
 import json
+__all__ = [
+    "KINDS", "MOSAIC", "ALL_KINDS", "BACKGROUNDS", "MOSAIC_CELLS", "sample_texture_params", "make_texture",
+    "background_library", "library_colours", "sample_background",
+]
+
 import math
 
 import numpy as np

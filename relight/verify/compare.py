@@ -38,6 +38,12 @@ the entry, exit 2 in the CLI) unless ``skip_bad`` collects them instead.
 """
 from __future__ import annotations
 
+__all__ = [
+    "NOISE_SEED_OFFSET", "STRENGTH_NOTE", "IMAGE_METRICS", "CompareError", "Light", "ImageComparison",
+    "Comparison", "gt_light", "Task", "prepare", "compare_one", "BAD_INPUT",
+    "compare_predictions", "moved_light_predictions",
+]
+
 import os
 import time
 from dataclasses import dataclass, field
@@ -46,7 +52,7 @@ import numpy as np
 
 from relight import frames, metrics
 from relight.dataset import DatasetError, load_spec, read_manifest, safe_join
-from relight.predictions import Prediction, PredictionsError, read_predictions
+from relight.predictions import Prediction, PredictionsError, read_predictions, resolve_dataset_dir
 from relight.imageio import ImageError, read_exr
 from relight.scene.spec import SceneFileError
 from relight.verify.imagemetrics import image_errors, light_scores
@@ -137,20 +143,6 @@ class Comparison:
     bad: list[tuple[str, str]] = field(default_factory=list)   # (entry, one-line reason)
     seconds: float = 0.0
     render_seconds: float = 0.0
-
-
-def resolve_dataset_dir(predictions_path: str, data_dir: str | None, file_dataset: str | None) -> str:
-    """The dataset folder: ``data_dir`` if given, else the file's ``dataset`` field
-    (a relative path is tried against the predictions file's folder, then the cwd)."""
-    if data_dir:
-        return os.path.abspath(data_dir)
-    if not file_dataset:
-        raise CompareError(f"{predictions_path}: no dataset given (use --data DIR or a "
-                           "'dataset' field in the file)")
-    if os.path.isabs(file_dataset):
-        return file_dataset
-    beside = os.path.join(os.path.dirname(os.path.abspath(predictions_path)), file_dataset)
-    return os.path.abspath(beside if os.path.isdir(beside) else file_dataset)
 
 
 def gt_light(record: dict) -> Light:
@@ -277,8 +269,28 @@ def compare_predictions(predictions_path: str | os.PathLike, data_dir: str | Non
             the same Comparison as without it.
         map_floor: for map entries, also render the true light made a map (the map
             floor columns; one more render per map entry).
+
+    Returns:
+        A :class:`Comparison`: one :class:`ImageComparison` per compared entry, with the
+        four light errors in degrees (pan, tilt, direction, colour), the image errors of
+        the re-render (b) against the dataset's EXR (a) (RMSE, PSNR in dB, SSIM), the
+        render noise floor, and both linear ``(res, res, 3)`` float32 images.
+
     Raises:
         CompareError / PredictionsError naming the entry (unless ``skip_bad``).
+
+    Predictions equal to the truth re-render the dataset's image exactly (same seed):
+
+    >>> import relight, tempfile
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> data, pred = os.path.join(tmp.name, "data"), os.path.join(tmp.name, "pred.json")
+    >>> _ = relight.generate(data, 1, seed=2, cfg=relight.GeneratorConfig(res=16, spp=4), progress=False)
+    >>> relight.write_predictions(pred, [{"id": r["id"], "pan_deg": r["pan_rel_deg"], "tilt_deg": r["light"]["tilt_deg"],
+    ...                           "rgb": r["light"]["rgb"]} for r in read_manifest(data)], dataset=data)
+    >>> item = compare_predictions(pred, progress=False).items[0]
+    >>> item.original.shape, item.light_errors_deg["direction"], item.image_errors["rmse"]
+    ((16, 16, 3), 0.0, 0.0)
+    >>> tmp.cleanup()
     """
     from relight import backend
     from relight.scene.build import SceneBuilder
@@ -357,7 +369,7 @@ def _compare_on_engine(scheduler, tasks: list[Task], noise_seed_offset: int, pro
     """The outcomes of ``tasks`` rendered on Dask, gathered here in task order."""
     from relight import engine
     return engine.map_ordered(scheduler, _compare_shard, (tasks, noise_seed_offset, map_floor), len(tasks),
-                              "compare", progress)
+                              "compare", engine.ShardPlan(progress=progress))
 
 
 def moved_light_predictions(dataset_dir: str | os.PathLike, spread_deg: float = 30.0,

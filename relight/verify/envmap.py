@@ -31,8 +31,37 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from relight import frames
+from relight import colour, frames
 from relight.errors import ImageError, PredictionsError
+
+__all__ = [
+    "DOMINANT_BLUR_DEG",
+    "DOMINANT_COARSE_HEIGHT",
+    "DOMINANT_REGION_FRACTION",
+    "MIN_HEIGHT",
+    "MAX_PIXELS",
+    "DEFAULT_WIDTH",
+    "DISC_RADIUS_PX",
+    "MIN_DISC_RADIUS_DEG",
+    "DISC_SUPERSAMPLE",
+    "LUMINANCE",
+    "EnvmapError",
+    "check_envmap",
+    "read_envmap",
+    "write_envmap",
+    "mitsuba_layout",
+    "DominantLight",
+    "dominant_light",
+    "irradiance_rgb",
+    "disc_radius_deg",
+    "disc_envmap",
+    "rotate_envmap",
+    "blur_envmap",
+    "envmap_light",
+    "light_envmap",
+    "from_light",
+    "to_light",
+]
 
 DOMINANT_BLUR_DEG = 10.0         # the blur: luminous power in caps of this radius
 DOMINANT_COARSE_HEIGHT = 32      # ... on the map summed into <= 64 x 32 blocks
@@ -43,7 +72,7 @@ DEFAULT_WIDTH = 256              # maps written by ``relight envmap from-light``
 DISC_RADIUS_PX = 1.5             # disc radius in pixel widths ...
 MIN_DISC_RADIUS_DEG = 1.0        # ... but never smaller than this
 DISC_SUPERSAMPLE = 4             # per-axis coverage samples of a disc's edge pixels
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])   # Rec.709 / sRGB primaries
+LUMINANCE = colour.REC709_LUMA   # Rec.709 / sRGB primaries (relight.colour owns the weights)
 
 
 class EnvmapError(ImageError):
@@ -304,7 +333,7 @@ def from_light(predictions_path: str, data_dir: str | None, out_dir: str, width:
     from relight.fileio import atomic_folder
     from relight.imageio import write_exr
     from relight.predictions import read_predictions, write_predictions
-    from relight.verify.compare import resolve_dataset_dir
+    from relight.predictions import resolve_dataset_dir
     if frame not in frames.ENVMAP_FRAMES:
         raise PredictionsError(f"frame must be one of {', '.join(frames.ENVMAP_FRAMES)}, got {frame!r}")
     pfile = read_predictions(predictions_path)
@@ -351,7 +380,7 @@ def to_light(predictions_path: str, out_path: str, data_dir: str | None = None, 
     records = None
     if data_dir or pfile.dataset:
         from relight.dataset import read_manifest
-        from relight.verify.compare import resolve_dataset_dir
+        from relight.predictions import resolve_dataset_dir
         dataset_dir = resolve_dataset_dir(predictions_path, data_dir, pfile.dataset)
         if os.path.isdir(dataset_dir):
             records = {r.get("id"): r for r in read_manifest(dataset_dir)}

@@ -16,13 +16,18 @@ images (Rec. 709 weights), on a diverging map whose limits are symmetric.
 """
 from __future__ import annotations
 
+__all__ = [
+    "DIFF_CMAP", "DIFF_PERCENTILE", "PANEL_DPI", "FIG3_DPI", "MAX_COLUMNS", "luminance_difference",
+    "diff_limit", "save_panel", "pick_columns", "save_figure3", "save_spheres_figure", "pole_overlay",
+]
+
 import os
 
 import numpy as np
 
+from relight.colour import luminance
 from relight.imageio import to_srgb8
 
-LUMA_709 = np.array([0.2126, 0.7152, 0.0722])
 DIFF_CMAP = "RdBu_r"
 DIFF_PERCENTILE = 99.5        # colour bar limit: this percentile of |c| (robust to fireflies)
 PANEL_DPI = 110
@@ -39,7 +44,7 @@ def _plt():
 
 def luminance_difference(original: np.ndarray, rerender: np.ndarray) -> np.ndarray:
     """``Y(b) - Y(a)`` of two linear ``(H, W, 3)`` images, shape ``(H, W)``."""
-    return (np.asarray(rerender, np.float64) - np.asarray(original, np.float64)) @ LUMA_709
+    return luminance(np.asarray(rerender, np.float64) - np.asarray(original, np.float64))
 
 
 def diff_limit(diffs) -> float:

@@ -14,6 +14,12 @@ and channels.
 """
 from __future__ import annotations
 
+__all__ = [
+    "SSIM_SIGMA_PX", "SSIM_TRUNCATE", "SSIM_K1", "SSIM_K2", "DEFAULT_PEAK", "rmse", "psnr", "ssim_map", "ssim",
+    "image_errors",
+    "fitted_scale", "light_scores",
+]
+
 import math
 
 import numpy as np

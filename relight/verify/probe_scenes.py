@@ -20,6 +20,13 @@ sphere is a bright patch that is not the light.
 """
 from __future__ import annotations
 
+__all__ = [
+    "LIGHT_ANGULAR_RADIUS_DEG", "LIGHT_DISTANCE_RADII", "LIGHT_IRRADIANCE", "GRAY_ALBEDO", "SKY_RADIANCE",
+    "GROUND_ALBEDO", "WINDOW_RADIANCE", "MAX_VIEW_LIGHT_ANGLE_DEG", "MIN_LIGHT_ELEVATION_DEG", "FOV_RANGE_DEG",
+    "RADIUS_PX_RANGE", "FIREFLY_RATIO", "DEPTH_RANGE", "ProbeScene", "sample_probe_scene", "remove_fireflies",
+    "render_probe_scene",
+]
+
 import math
 from dataclasses import dataclass
 
@@ -99,7 +106,7 @@ def _sample_light(rng, chrome: Sphere, front: bool) -> np.ndarray:
     raise RuntimeError("could not sample a light direction")
 
 
-def sample_scene(seed: int, width: int = 640, height: int = 480, clutter: bool = False,
+def sample_probe_scene(seed: int, width: int = 640, height: int = 480, clutter: bool = False,
                  front: bool | None = None, fov_deg: float | None = None) -> ProbeScene:
     """A random validation scene: FOV uniform in :data:`FOV_RANGE_DEG`, the two spheres
     anywhere in the frame (chrome radius in :data:`RADIUS_PX_RANGE` pixels), the light
@@ -233,7 +240,7 @@ def remove_fireflies(image: np.ndarray, ratio: float = FIREFLY_RATIO) -> np.ndar
     return out
 
 
-def render_scene(scene: ProbeScene, spp: int = 64, seed: int = 0) -> np.ndarray:
+def render_probe_scene(scene: ProbeScene, spp: int = 64, seed: int = 0) -> np.ndarray:
     """Linear RGB ``(height, width, 3)`` float32 render of a validation scene, with
     isolated fireflies removed (:func:`remove_fireflies`)."""
     mi = backend.mitsuba()

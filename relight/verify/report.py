@@ -16,6 +16,11 @@ it is itself a compare report (has a ``settings.json`` of this format).
 """
 from __future__ import annotations
 
+__all__ = [
+    "REPORT_FORMAT", "summarise", "image_table", "markdown_html", "check_out", "write_report",
+    "kinds_table",
+]
+
 import csv
 import html
 import json

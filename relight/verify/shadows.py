@@ -26,6 +26,20 @@ import numpy as np
 from relight import backend, frames
 from relight.verify.envmap import LUMINANCE
 
+__all__ = [
+    "SHADOW_DIRECTIONS",
+    "RAY_EPSILON_M",
+    "surface_points",
+    "object_cylinders",
+    "occluded_fraction",
+    "occluded_fraction_reference",
+    "envmap_directions",
+    "soft_iou",
+    "point_shadow",
+    "envmap_shadow",
+    "direction_shadow",
+]
+
 SHADOW_DIRECTIONS = 64      # directions drawn from a map
 RAY_EPSILON_M = 1e-3        # shadow rays start this far off the surface (scene in metres)
 

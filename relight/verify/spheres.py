@@ -16,6 +16,13 @@ colour, camera pose) through ``mi.traverse``.
 """
 from __future__ import annotations
 
+__all__ = [
+    "SUN_IRRADIANCE", "SKY_RADIANCE", "SKY_SAMPLING_WEIGHT", "DIFFUSE_ALBEDO", "SPECULAR_ALPHA",
+    "SPHERE_CAMERA_R_M", "SPHERE_FOV_DEG", "POLE_HEIGHT_M", "POLE_RADIUS_M", "GROUND_RADIUS_M",
+    "POLE_CAMERA_R_M", "POLE_FOV_DEG", "GROUND_ALBEDO", "POLE_ALBEDO", "DEFAULT_SPP", "KINDS", "render_probe",
+    "sphere_pair", "pole_inset", "overlay_pole", "gt_from_entry", "sphere_rows",
+]
+
 import math
 import os
 
@@ -173,7 +180,8 @@ def sphere_rows(predictions_path: str, data_dir: str | None, camera_tilt_deg: fl
     from relight.dataset import read_manifest, safe_join
     from relight.predictions import PredictionsError, read_predictions
     from relight.imageio import read_exr, read_image
-    from relight.verify.compare import gt_light, resolve_dataset_dir
+    from relight.predictions import resolve_dataset_dir
+    from relight.verify.compare import gt_light
     pfile = read_predictions(predictions_path)
     records, dataset_dir = {}, None
     if data_dir or pfile.dataset:

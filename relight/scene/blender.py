@@ -20,10 +20,17 @@ exactly as :mod:`relight.scene.build` builds it for Mitsuba:
 
 ``bpy`` (PyPI, ``relight[blender]``) needs its own Python 3.11 environment (it pins
 numpy < 2); only this module's functions that say so import it, and the rest of relight
-reaches it through :func:`blender_python` / ``python -m relight.blender`` in that
+reaches it through :func:`blender_python` / ``python -m relight.scene.blender`` in that
 environment. Only numpy-only parts of relight are imported on the bpy side.
 """
 from __future__ import annotations
+
+__all__ = [
+    "BLENDER_VENV_ENV", "DEFAULT_BLENDER_VENV", "INSTALL_HINT", "SAMPLING_PATTERN", "DIFFERENCES",
+    "point_light_power", "point_light_intensity", "cycles_max_bounces", "rectangle_quad", "export_blender",
+    "render_cycles", "blender_python", "run_blender_module", "CyclesWorker", "main", "export_and_render",
+    "relative_rmse",
+]
 
 import contextlib
 import json
@@ -372,22 +379,22 @@ def blender_python() -> str | None:
 
 
 def _repo_root() -> str:
-    return os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    return os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 def run_blender_module(args: list[str], python: str | None = None, **kwargs) -> subprocess.CompletedProcess:
-    """Run ``python -m relight.blender ARGS`` in the bpy environment (this checkout of
+    """Run ``python -m relight.scene.blender ARGS`` in the bpy environment (this checkout of
     relight on its path); :class:`BlenderError` if there is none."""
     python = python or blender_python()
     if python is None:
         raise BlenderError(INSTALL_HINT)
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join(p for p in (_repo_root(), env.get("PYTHONPATH")) if p)
-    return subprocess.run([python, "-m", "relight.blender", *args], env=env, **kwargs)
+    return subprocess.run([python, "-m", "relight.scene.blender", *args], env=env, **kwargs)
 
 
 class CyclesWorker:
-    """A long-lived ``python -m relight.blender worker`` in the bpy environment.
+    """A long-lived ``python -m relight.scene.blender worker`` in the bpy environment.
 
     ``render(spec, spp, seed)`` returns ``(image, seconds)`` like :func:`render_cycles`;
     scenes and images travel as files in a private temporary folder.
@@ -400,7 +407,7 @@ class CyclesWorker:
         self._tmp = tempfile.TemporaryDirectory(prefix="relight-cycles-")
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join(p for p in (_repo_root(), env.get("PYTHONPATH")) if p)
-        cmd = [python, "-m", "relight.blender", "worker"]
+        cmd = [python, "-m", "relight.scene.blender", "worker"]
         if threads is not None:
             cmd += ["--threads", str(int(threads))]
         self._proc = subprocess.Popen(cmd, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
@@ -443,7 +450,7 @@ class CyclesWorker:
         self.close()
 
 
-# --------------------------------------------------------------------------- python -m relight.blender
+# --------------------------------------------------------------------------- python -m relight.scene.blender
 def _worker(threads: int | None) -> int:
     """Serve render requests: one JSON object a line on stdin, one reply a line on stdout."""
     from relight.scene.spec import load_scene
@@ -470,11 +477,11 @@ def _worker(threads: int | None) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m relight.blender export SCENE --out FILE.blend [--render OUT.exr --spp N]``
+    """``python -m relight.scene.blender export SCENE --out FILE.blend [--render OUT.exr --spp N]``
     or ``... worker`` (used by :class:`CyclesWorker`)."""
     import argparse
     from relight.scene.spec import SceneFileError, load_scene
-    ap = argparse.ArgumentParser(prog="python -m relight.blender")
+    ap = argparse.ArgumentParser(prog="python -m relight.scene.blender")
     sub = ap.add_subparsers(dest="what", required=True)
     e = sub.add_parser("export")
     e.add_argument("scene")

@@ -1,15 +1,16 @@
 """A MID-like dataset (``relight generate --preset mid``) and the paper's Tables 4-5.
 
-Scenes, rendering and the *physical* ground truth are in :mod:`relight.scene.mid`.
-This module writes the dataset (the machinery of :mod:`relight.dataset`: folder lock,
-atomic files, an append-only manifest, a card, resume by re-running the same command)
+Scenes, rendering and the *physical* ground truth are in :mod:`relight.experiments.mid.scene`.
+This module writes the dataset (the format of :mod:`relight.dataset` and the machinery of
+:mod:`relight.generator.run`: folder lock, atomic files, an append-only manifest, a card,
+resume by re-running the same command)
 and computes the *procedure's* ground truth: the sphere procedure
 (:func:`relight.probe.run.run_probe`, perspective, the spheres' circles given as a
 person marks them) on the rendered linear image, with the paper's **reference-image
 correction**: the procedure's pan/tilt on the scene's reference image (flash along the
 optical axis) are compared with the assumed ones and that pan/tilt offset is added to
 every image of the scene. The paper assumes the light mounted 10 deg above the camera;
-our rig's flash is :data:`relight.scene.mid.FLASH_OFFSET_M` above it, which is 2-6 deg
+our rig's flash is :data:`relight.experiments.mid.scene.FLASH_OFFSET_M` above it, which is 2-6 deg
 seen from the spheres at 1.2-3.2 m, so the assumed direction is the one from the chrome
 sphere to the flash, the sphere's distance following from its outline and its known
 radius (MID's probes are of known size too): :func:`expected_reference`.
@@ -27,6 +28,14 @@ ground truths.
 """
 from __future__ import annotations
 
+__all__ = [
+    "MID_FORMAT", "REF_ELEVATION_DEG", "MASK_DILATE_PX", "MidStats", "sphere_mask", "masked_srgb8",
+    "exposure_of", "run_procedure", "chrome_distance_m", "expected_reference", "reference_correction",
+    "corrected", "mid_config", "generate_mid", "PAPER_TABLE4", "PAPER_TABLE5", "TABLE_METRICS", "is_front",
+    "truth_arrays", "errors_against", "table4_rows", "table5_rows", "format_table4", "format_table5",
+    "predict_split", "score", "procedure_vs_physical",
+]
+
 import json
 import math
 import os
@@ -36,10 +45,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from relight import frames
+from relight.colour import luminance
 from relight.errors import ConfigError, DatasetError, ProbeError
-from relight.scene import mid as scene_mid
-from relight.scene.mid import MidConfig
-from relight.scene.sampling import read_config_file
+from relight.experiments.mid import scene as scene_mid
+from relight.experiments.mid.scene import MidConfig
+from relight.generator.sampling import read_config_file
 
 MID_FORMAT = "relight.dataset.mid/v1"
 REF_ELEVATION_DEG = math.degrees(math.atan(scene_mid.FLASH_OFFSET_M / 2.2))
@@ -83,7 +93,7 @@ def masked_srgb8(srgb8: np.ndarray, mask: np.ndarray) -> np.ndarray:
 
 def exposure_of(image: np.ndarray) -> float:
     """Auto exposure: the factor that brings the median luminance to 0.18."""
-    lum = np.asarray(image, np.float64)[..., :3] @ np.array([0.2126, 0.7152, 0.0722])
+    lum = luminance(np.asarray(image, np.float64))
     med = float(np.median(lum))
     return scene_mid.EXPOSURE_KEY / med if med > 0 else 1.0
 
@@ -113,7 +123,7 @@ def chrome_distance_m(entry: dict, cfg: MidConfig, radius_m: float) -> float:
 def expected_reference(entry: dict, camera_tilt_deg: float, distance_m: float | None = None) -> tuple[float, float]:
     """The assumed ``(pan_rel, tilt)`` of the reference image: from the chrome sphere
     (``distance_m`` from the camera along ``chrome_centre_camera``) to the flash,
-    :data:`relight.scene.mid.FLASH_OFFSET_M` above the camera (world up). Without a
+    :data:`relight.experiments.mid.scene.FLASH_OFFSET_M` above the camera (world up). Without a
     distance: toward the camera raised by :data:`REF_ELEVATION_DEG` (the sphere at 2.2 m).
 
     A sphere on the optical axis 2.2 m away, camera level: the flash is 3.1 deg above
@@ -178,11 +188,11 @@ def _write_card(out: str, seed: int, cfg: MidConfig, scenes: int, n_records: int
                                             f"radius) to the flash {scene_mid.FLASH_OFFSET_M} m above the camera"})
 
 
-def _render_scene(out: str, cfg: MidConfig, seed: int, index: int, stats: MidStats) -> tuple[list[dict], dict]:
+def _render_room(out: str, cfg: MidConfig, seed: int, index: int, stats: MidStats) -> tuple[list[dict], dict]:
     """Render, measure and write one scene's image files; returns its records and the
     scene file's content (written by the caller once the records are in)."""
     from relight.imageio import to_srgb8, write_exr, write_srgb8
-    scene = scene_mid.sample_scene(cfg, seed, index)
+    scene = scene_mid.sample_mid_scene(cfg, seed, index)
     renderer = scene_mid.MidRenderer(scene, cfg)
     mask = sphere_mask(cfg, scene)
     split = scene_mid.split_of_scene(index)
@@ -303,7 +313,7 @@ def generate_mid(out_dir: str | os.PathLike, scenes: int, seed: int = 0, cfg: Mi
         bar = tqdm(total=len(todo) * len(cfg.directions), unit="img", disable=not progress, desc="generate mid")
         with open(manifest_path, "ab") as manifest:
             for i in todo:
-                records, doc = _render_scene(out, cfg, seed, i, stats)
+                records, doc = _render_room(out, cfg, seed, i, stats)
                 manifest.write(b"".join((json.dumps(r) + "\n").encode() for r in records))
                 manifest.flush()
                 os.fsync(manifest.fileno())

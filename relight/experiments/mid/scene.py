@@ -43,12 +43,23 @@ is not the flash's direction.
 """
 from __future__ import annotations
 
+__all__ = [
+    "ROOM_HALF_M", "CEILING_M", "CAMERA_HEIGHT_M", "CAMERA_TILT_DEG", "CAMERA_WALL_GAP_M", "FOV_DEG",
+    "GRAY_ALBEDO", "SPHERE_RADIUS_FRACTION", "SPHERE_DISTANCE_M", "FLASH_OFFSET_M", "FLASH_RADIUS_M",
+    "SNOOT_LENGTH_M", "SNOOT_RADIUS_M", "FLASH_CCT_K", "FLASH_INTENSITY_W_SR", "CUBE_RES", "CAP_DEG",
+    "EXPOSURE_KEY", "REFERENCE", "FLASH_DIRECTIONS", "MidConfig", "split_of_scene", "MidScene", "flash_axis",
+    "reference_axis", "camera_camera_frame", "probe_camera", "probe_sphere", "sample_mid_scene",
+    "flash_radiance", "backend_mi", "CUBE_AXES", "cube_directions", "MidRenderer", "circle_overlap",
+    "dominant_direction", "physical_truth",
+]
+
 import math
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
 from relight import frames
+from relight.colour import luminance
 from relight.errors import ConfigError
 
 ROOM_HALF_M = (2.0, 3.5)           # half-widths of the room along x and y
@@ -213,7 +224,7 @@ def probe_sphere(scene: MidScene, which: str):
     return Sphere(tuple(camera_camera_frame(scene, c).tolist()), float(r))
 
 
-def sample_scene(cfg: MidConfig, seed: int, index: int) -> MidScene:
+def sample_mid_scene(cfg: MidConfig, seed: int, index: int) -> MidScene:
     """Scene ``index`` of a dataset of seed ``seed`` (depends on nothing else)."""
     from relight.colour import cct_duv_to_rgb
     from relight.scene.shapes import FAMILIES, sample_shape_params
@@ -408,11 +419,8 @@ def _cube_face_matrix(centre, axis) -> np.ndarray:
     """Mitsuba sensor to_world (local +X left, +Y up, +Z forward) looking along ``axis``."""
     fwd = np.asarray(axis, np.float64)
     up = np.array([0.0, 0.0, 1.0]) if abs(fwd[2]) < 0.5 else np.array([0.0, 1.0, 0.0])
-    left = np.cross(up, fwd)
-    left /= np.linalg.norm(left)
-    up = np.cross(fwd, left)
     m = np.eye(4)
-    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = left, up, fwd, centre
+    m[:3, :3], m[:3, 3] = frames.sensor_frame(fwd, up), centre
     return m
 
 
@@ -569,10 +577,6 @@ def circle_overlap(r1: float, r2: float, d: float) -> float:
     return r1 * r1 * (a1 - math.sin(2 * a1) / 2) + r2 * r2 * (a2 - math.sin(2 * a2) / 2)
 
 
-def _luminance(rgb) -> np.ndarray:
-    return np.asarray(rgb, np.float64) @ np.array([0.2126, 0.7152, 0.0722])
-
-
 def dominant_direction(dirs: np.ndarray, weights_lum: np.ndarray, cap_deg: float = CAP_DEG) -> np.ndarray:
     """The centre of the brightest ``cap_deg`` cap of a radiance field sampled as
     directions ``(N, 3)`` with luminance x solid angle ``(N,)``: the cap (centred on a
@@ -612,9 +616,9 @@ def physical_truth(scene: MidScene, axis, chrome_faces: np.ndarray, gray_faces: 
         rgb_all = np.concatenate([rad * omega[:, None], power * np.asarray(scene.flash_rgb)[None]])
         out[which] = (d_all, rgb_all, power)
     d_all, rgb_all, power = out["chrome"]
-    world = dominant_direction(d_all, _luminance(rgb_all))
+    world = dominant_direction(d_all, luminance(rgb_all))
     total = rgb_all.sum(0)
-    direct_share = float(_luminance(power * np.asarray(scene.flash_rgb)) / max(_luminance(total), 1e-12))
+    direct_share = float(luminance(power * np.asarray(scene.flash_rgb)) / max(luminance(total), 1e-12))
     g_rgb = out["gray"][1].sum(0)
     g_rgb = g_rgb / np.linalg.norm(g_rgb)
     cam = frames.world_to_camera(world, scene.camera_tilt_deg)

@@ -20,6 +20,12 @@ backgrounds, pastel part colours (see the block at the end of this module).
 """
 from __future__ import annotations
 
+__all__ = [
+    "read_config_file", "GeneratorConfig", "LEGACY_CONFIG", "mesh_files", "image_rng", "split_of",
+    "sample_scene",
+    "sid2_paper_config", "is_sid2_paper",
+]
+
 import dataclasses
 import json
 import math
