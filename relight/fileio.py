@@ -98,11 +98,22 @@ def _inside(path: str, folder: str) -> bool:
 def check_outputs(outputs, inputs=(), replaces_folder: bool = False) -> None:
     """Refuse outputs that would destroy an input (raises :class:`OutputError`).
 
-    An output is refused when it resolves (links followed) to one of ``inputs``, or
-    lies in a part of an input dataset folder that the dataset owns (its manifest,
-    card, images/, exr/, scenes/). With ``replaces_folder`` (the output is a folder
-    replaced as a whole) it is also refused when an input lies inside it.
+    The one rule every command applies to every output (file or folder) and every input
+    (data folders, ``--init`` / ``--model`` weights, scene, prediction and image files),
+    links followed:
+
+    * an output that resolves to an input is refused;
+    * an output that lies in a part of an input dataset folder that the dataset owns
+      (its manifest, card, images/, exr/, scenes/) is refused;
+    * an output folder that holds an input is refused: a command writes its folder's
+      files by name (``train``'s ``best.safetensors``, ``evaluate``'s reports, a
+      dataset's images), so an input kept there could be replaced (``train --out RUN
+      --init RUN/best.safetensors`` would lose the init model).
+
+    ``replaces_folder`` is accepted for older callers; the third rule now holds for every
+    output.
     """
+    del replaces_folder
     inputs = [os.fspath(i) for i in inputs if i is not None]
     for out in outputs:
         if out is None:
@@ -116,8 +127,9 @@ def check_outputs(outputs, inputs=(), replaces_folder: bool = False) -> None:
                 if rel.split(os.sep)[0] in DATASET_OWNED:
                     raise OutputError(f"output {out} is part of the input dataset {inp}; "
                                       "choose a path outside it")
-            if replaces_folder and _inside(inp, out):
-                raise OutputError(f"output folder {out} holds the input {inp}; choose another --out")
+            if _inside(inp, out):
+                raise OutputError(f"output folder {out} holds the input {inp}, which the command could "
+                                  "overwrite; choose another output or move the input out of it")
 
 
 def check_file_target(path: str | os.PathLike) -> None:

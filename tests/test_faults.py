@@ -223,6 +223,42 @@ def test_output_refusal_through_the_console_script(world, tmp_path):
     assert tree(world["root"]) == before
 
 
+# An output folder that holds an input: the command writes its folder's files by name,
+# so an input kept there could be replaced (issue 27: `train --init RUN/best.safetensors
+# --out RUN` replaced the init weights). One rule, every verb (relight.fileio.check_outputs).
+HOLDS_INPUT = [
+    ["train", "--data", "{D}", "--out", "{tmp}/RUN", "--init", "{tmp}/RUN/best.safetensors", "--res", "16",
+     "--epochs", "1", "--quiet"],
+    ["train", "--data", "{D}", "--out", "{tmp}/RUN", "--init", "{tmp}/link.safetensors", "--res", "16",
+     "--epochs", "1", "--quiet"],   # a link to RUN/best.safetensors
+    ["train", "--data", "{tmp}/RUN/D", "--out", "{tmp}/RUN", "--res", "16", "--epochs", "1", "--quiet"],
+    ["evaluate", "--data", "{D}", "--model", "{tmp}/RUN/best.safetensors", "--out", "{tmp}/RUN"],
+    ["evaluate", "--data", "{tmp}/RUN/D", "--out", "{tmp}/RUN"],
+    ["generate", "--config", "{tmp}/RUN/config.json", "--out", "{tmp}/RUN", "--count", "1", "--res", "16"],
+    ["generate", "--preset", "mid", "--config", "{tmp}/RUN/config.json", "--out", "{tmp}/RUN", "--count", "1"],
+    ["compare", "{tmp}/RUN/preds.json", "--data", "{D}", "--out", "{tmp}/RUN"],
+    ["figure", "spheres", "{tmp}/RUN/preds.json", "--data", "{D}", "--out", "{tmp}/RUN"],
+    ["calibrate", "--data", "{D}", "--model", "{tmp}/RUN/best.safetensors", "--out", "{tmp}/RUN/best.safetensors"],
+]
+
+
+@pytest.mark.parametrize("argv", HOLDS_INPUT, ids=lambda a: " ".join(a[:1] + a[-2:]))
+def test_output_folder_holding_an_input_is_refused(argv, world, tmp_path, capfd):
+    from conftest import untrained_model
+    run = tmp_path / "RUN"
+    run.mkdir()
+    untrained_model(run / "best.safetensors", res=RES)
+    (tmp_path / "link.safetensors").symlink_to(run / "best.safetensors")
+    shutil.copytree(world["D"], run / "D")
+    (run / "config.json").write_text(json.dumps({"res": RES, "spp": SPP}))
+    shutil.copy(world["preds"], run / "preds.json")
+    before, inputs = tree(tmp_path), tree(world["root"])
+    code, _, err = cli(fill(argv, world, tmp_path), capfd)
+    assert_refused(code, err)
+    assert "RUN" in err
+    assert tree(tmp_path) == before and tree(world["root"]) == inputs
+
+
 # --- 2. --out of the wrong kind, half-written leftovers -------------------------------------
 
 WRONG_OUT = [

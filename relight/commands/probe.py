@@ -55,10 +55,10 @@ def cmd_probe(args) -> int:
     from relight.predictions import write_predictions
     from relight.probe.run import ProbeConfig, run_probe, write_qa
     inputs = [args.chrome, args.chrome_mask, args.diffuse, args.diffuse_mask]
-    check_outputs([args.out, args.qa], inputs)
-    check_file_target(args.out)
+    check_file_target(args.out)   # a folder given for a file: said as such, before the input rule
     if args.qa:
         check_file_target(args.qa)
+    check_outputs([args.out, args.qa], inputs)
     cfg = ProbeConfig(chrome=args.chrome, chrome_circle=args.chrome_circle, chrome_mask=args.chrome_mask,
                       diffuse=args.diffuse, diffuse_circle=args.diffuse_circle, diffuse_mask=args.diffuse_mask,
                       fov_deg=args.fov, focal_px=args.focal_px, camera_tilt_deg=args.camera_tilt,
