@@ -38,10 +38,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from relight import frames
-from relight.fileio import LOCK_NAME, FolderLock, remove_temps, write_bytes, write_json
+from relight.fileio import LOCK_NAME, FolderLock, append_line, remove_temps, write_bytes, write_json
 from relight.scene.sampling import LEGACY_CONFIG, GeneratorConfig, sample_scene, split_of
 from relight.scene.spec import SceneSpec
-from relight.errors import DatasetError
+from relight.errors import DatasetError, RelightError
 
 DATASET_FORMAT = "relight.dataset/v1"
 MANIFEST = "manifest.jsonl"
@@ -245,9 +245,17 @@ def _write(out: str, spec: SceneSpec, image: np.ndarray, split: str) -> dict:
     the record to append once all three are in place."""
     from relight.imageio import write_exr, write_png
     from relight.fileio import write_text
-    write_text(os.path.join(out, "scenes", f"{spec.id}.json"), spec.to_json())
-    write_exr(os.path.join(out, "exr", f"{spec.id}.exr"), image)
-    write_png(os.path.join(out, "images", f"{spec.id}.png"), image)
+    paths = [os.path.join(out, sub, f"{spec.id}{ext}") for sub, ext in
+             (("scenes", ".json"), ("exr", ".exr"), ("images", ".png"))]
+    try:
+        write_text(paths[0], spec.to_json())
+        write_exr(paths[1], image)
+        write_png(paths[2], image)
+    except BaseException:   # no record will name them: leave no file of this image behind
+        for path in paths:
+            with contextlib.suppress(OSError):
+                os.remove(path)
+        raise
     return record_for(spec, split)
 
 
@@ -315,7 +323,10 @@ def _worker(out, cfg, seed, indices, threads, queue, parent_pid=None, watch=None
         backend.init(threads=threads)
         _pipeline(out, cfg, seed, indices, lambda record, render_s: queue.put(("ok", record, render_s)))
     except BaseException as exc:  # report to the parent, which stops cleanly
-        queue.put(("error", f"{type(exc).__name__}: {exc}", 0.0))
+        if isinstance(exc, RelightError):   # a user error (a full disk...): said as the worker said it
+            queue.put(("user-error", str(exc), 0.0))
+        else:
+            queue.put(("error", f"{type(exc).__name__}: {exc}", 0.0))
 
 
 def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
@@ -357,7 +368,7 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
     except BaseException:
         if stats.written == 0:   # nothing made: leave the folder as it was
             if not existed:
-                shutil.rmtree(out, ignore_errors=True)
+                lock.remove_made()   # the folder and any parents made for it
             elif old_card is not None:
                 write_bytes(card_path, old_card)
             elif os.path.isfile(card_path) and not _has_records(out):
@@ -419,9 +430,7 @@ def _generate_locked(out: str, count: int, seed: int, cfg: GeneratorConfig, work
     t_start = time.perf_counter()
     with open(manifest_path, "ab") as manifest:
         def append(record, render_s):
-            manifest.write((json.dumps(record) + "\n").encode())
-            manifest.flush()
-            os.fsync(manifest.fileno())
+            append_line(manifest, (json.dumps(record) + "\n").encode(), manifest_path)
             stats.written += 1
             stats.render_s += render_s
             bar.update(1)
@@ -442,6 +451,8 @@ def _generate_locked(out: str, count: int, seed: int, cfg: GeneratorConfig, work
             try:
                 for _ in range(len(todo)):
                     status, payload, render_s = queue.get()
+                    if status == "user-error":
+                        raise DatasetError(payload)
                     if status == "error":
                         raise DatasetError(f"a worker failed: {payload}")
                     append(payload, render_s)

@@ -271,8 +271,7 @@ def _train_rank0(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, d
         return _train_locked(cfg, out_dir, resume, progress, ddp=ddp)
     except BaseException:
         if not existed and not os.path.exists(os.path.join(out_dir, CHECKPOINT)):
-            import shutil
-            shutil.rmtree(out_dir, ignore_errors=True)   # nothing was trained: leave no folder
+            lock.remove_made()   # nothing was trained: leave no folder (nor parents made for it)
         raise
     finally:
         lock.release()
