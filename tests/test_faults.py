@@ -771,3 +771,149 @@ def test_bad_number_through_the_console_script(argv, world, tmp_path):
                           timeout=PROCESS_TIMEOUT_S)
     assert_refused(proc.returncode, proc.stderr)
     assert tree(world["root"]) == before and os.listdir(tmp_path) == []
+
+
+# --- 8. a full disk, a quota, a read-only file system (issue 27) ---------------------------------
+
+FS_SIZE = "1m"   # a real tmpfs, small enough to fill in a moment
+
+
+@pytest.fixture
+def small_fs(tmp_path):
+    """A real 1 MB tmpfs mounted in tmp_path (root only; skipped with the reason otherwise);
+    ``fill_to(free)`` fills it to leave ``free`` bytes; ``read_only()`` remounts it read-only."""
+    mnt = tmp_path / "fs"
+    mnt.mkdir()
+    if os.geteuid() != 0:
+        pytest.skip("mounting a small tmpfs needs root")
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={FS_SIZE}", "tmpfs", str(mnt)],
+                       capture_output=True, text=True)
+    if r.returncode:
+        pytest.skip(f"cannot mount a tmpfs here: {r.stderr.strip()}")
+
+    def fill_to(free: int):
+        with open(mnt / "filler", "wb") as f:
+            try:
+                while True:
+                    f.write(b"\0" * 65536)
+                    f.flush()
+            except OSError:
+                pass
+        with open(mnt / "filler", "r+b") as f:
+            f.truncate(max(0, os.path.getsize(mnt / "filler") - free))
+
+    def read_only():
+        subprocess.run(["mount", "-o", "remount,ro", str(mnt)], check=True, capture_output=True)
+
+    try:
+        yield mnt, fill_to, read_only
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], capture_output=True)
+
+
+FULL_DISK = {
+    "generate": ["generate", "--count", "40", "--res", "32", "--spp", "2", "--out", "{fs}/G", "--quiet"],
+    "predict": ["predict", "{D}/images", "--out", "{fs}/p.json"],
+    "evaluate": ["evaluate", "--data", "{D}", "--split", "all", "--out", "{fs}/E"],
+    "train": ["train", "--data", "{D}", "--out", "{fs}/R"] + TRAIN + ["--epochs", "1"],
+    "render": ["render", "{scene}", "--out", "{fs}/r.exr"],
+    "compare": ["compare", "{preds}", "--data", "{D}", "--out", "{fs}/C", "--quiet"],
+    "baseline": ["baseline", "gray-world", "--data", "{D}", "--split", "all", "--out", "{fs}/b.json"],
+    "invert": ["invert", "--data", "{D}", "--split", "all", "--limit", "1", "--max-iters", "1", "--out",
+               "{fs}/i.json", "--quiet"],
+    "figure spheres": ["figure", "spheres", "{preds}", "--data", "{D}", "--out", "{fs}/S"],
+}
+
+
+def _unrecorded(folder) -> list[str]:
+    """Files of a dataset folder that no manifest record names (orphans)."""
+    from relight.dataset import read_manifest
+    named = {r[k] for r in read_manifest(folder) for k in ("image", "exr", "scene")} \
+        if os.path.exists(os.path.join(folder, "manifest.jsonl")) else set()
+    return [f"{sub}/{n}" for sub in ("images", "exr", "scenes") if os.path.isdir(os.path.join(folder, sub))
+            for n in os.listdir(os.path.join(folder, sub)) if f"{sub}/{n}" not in named]
+
+
+@pytest.mark.parametrize("free", [0, 40_000])
+@pytest.mark.parametrize("verb", sorted(FULL_DISK))
+def test_full_disk_is_one_line_naming_the_output(verb, free, small_fs, world, tmp_path, capfd):
+    mnt, fill_to, _ = small_fs
+    fill_to(free)
+    inputs = tree(world["root"])
+    argv = [a.replace("{fs}", str(mnt)) for a in FULL_DISK[verb]]
+    code, _, err = cli(fill(argv, world, tmp_path), capfd)
+    if code == 0:   # it fitted (a small output with room left): nothing to check but the inputs
+        assert free and tree(world["root"]) == inputs
+        print(f"{verb}: fitted in {free} bytes")
+        return
+    assert_refused(code, err, "no space left")
+    option = "--out " + str(mnt)
+    assert option in err, err                          # the output as the user gave it
+    assert not temps_under(mnt) and tree(world["root"]) == inputs
+    left = sorted(os.listdir(mnt))
+    if verb == "generate" and "G" in left:             # finished images stay, each with its record
+        check_complete(mnt / "G")
+        assert not _unrecorded(mnt / "G")
+        os.remove(mnt / "filler")                      # space comes back: the same command resumes
+        code, _, err = cli(fill(argv, world, tmp_path), capfd)
+        assert code == 0, err
+        assert sorted(manifest_ids(mnt / "G")) == [f"{i:06d}" for i in range(40)]
+    else:
+        assert left == ["filler"], left                # nothing half-written, no folder left
+
+
+@pytest.mark.parametrize("verb", ["generate", "train", "render", "predict", "evaluate"])
+def test_read_only_output_is_one_line_naming_the_output(verb, small_fs, world, tmp_path, capfd):
+    mnt, _, read_only = small_fs
+    read_only()
+    argv = [a.replace("{fs}", str(mnt)) for a in FULL_DISK[verb]]
+    code, _, err = cli(fill(argv, world, tmp_path), capfd)
+    assert_refused(code, err, "read-only file system")
+    assert "--out " + str(mnt) in err and os.listdir(mnt) == []
+
+
+def test_read_only_images_folder_leaves_no_orphan_files(small_fs, world, tmp_path, capfd):
+    """A dataset whose images/ cannot be written (a read-only mount as root, no write
+    permission otherwise): generate stops with one line, every record keeps its three files
+    and no exr/ or scenes/ file is left without a record."""
+    data = tmp_path / "D"
+    shutil.copytree(world["D"], data)
+    mnt, _, read_only = small_fs
+    shutil.copytree(data / "images", mnt, dirs_exist_ok=True)
+    shutil.rmtree(data / "images")
+    os.symlink(mnt, data / "images")
+    read_only()
+    before = tree(data)
+    code, _, err = cli(["generate", "--count", "6", "--res", RES, "--spp", SPP, "--seed", "3", "--out", data,
+                        "--quiet"], capfd)
+    assert_refused(code, err, "--out")
+    assert "images/000004.png" in err
+    assert not _unrecorded(data) and tree(data) == before
+
+
+def test_disk_errors_are_named_without_a_disk():
+    """The mapping itself (any machine): ENOSPC/EDQUOT/EROFS through errno, a chained
+    cause or a library's words; a temporary name is said as its target and its option."""
+    import errno as E
+
+    from relight import fileio
+    from relight.errors import OutputError
+    fileio.name_outputs({"--out": "/data/run"})
+    try:
+        tmp = fileio.temp_path("/data/run/best.safetensors")
+        assert fileio.describe_output(tmp) == "--out /data/run (best.safetensors)"
+        for exc, words in ((OSError(E.ENOSPC, "No space left on device"), "no space left"),
+                           (OSError(E.EDQUOT, "Disk quota exceeded"), "disk quota"),
+                           (OSError(E.EROFS, "Read-only file system", tmp), "read-only"),
+                           (RuntimeError("Error while serializing: I/O error: No space left on device (os "
+                                         "error 28)"), "no space left")):
+            err = fileio.disk_error(exc, tmp, size=2048)
+            assert isinstance(err, OutputError) and words in str(err)
+            assert "--out /data/run (best.safetensors)" in str(err) and TEMP_HINT not in str(err)
+        assert "2.0 KB" in str(fileio.disk_error(OSError(E.ENOSPC, "x"), tmp, size=2048))
+        assert fileio.disk_error(ValueError("bad value"), "/tmp/x") is None   # not a disk problem
+        perm = fileio.write_error(PermissionError(E.EACCES, "Permission denied", tmp), "/data/run/best.safetensors",
+                                  tmp)
+        assert str(perm) == "cannot write --out /data/run (best.safetensors): Permission denied"
+    finally:
+        fileio.name_outputs({})
