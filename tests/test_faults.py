@@ -706,6 +706,8 @@ RANGE_BAD = {
     "--kappa-weight": ["-1"], "--fov": ["0", "180", "-1"], "--focal-px": ["0", "-1"],
     "--target-rmse": ["0", "-0.1", "2"], "--scheduler": ["local:0", "local:-1", "local:100000"],
     "--object-parts": ["0", "33", "5-3", "0-4", "1-2-3", "-1", "2-"],
+    "--chrome-circle": ["32,32,1e9", "32,32,0", "32,32,-1", "1e9,1,1", "1,2", "1,2,3,4"],
+    "--diffuse-circle": ["32,32,1e9", "32,32,0", "-1e9,1,1"],
 }
 
 
@@ -771,6 +773,57 @@ def test_bad_number_through_the_console_script(argv, world, tmp_path):
                           timeout=PROCESS_TIMEOUT_S)
     assert_refused(proc.returncode, proc.stderr)
     assert tree(world["root"]) == before and os.listdir(tmp_path) == []
+
+
+# --- 7b. sizes checked against the image or a documented limit before any allocation ---------
+
+@pytest.mark.parametrize("argv,contains", [
+    (["probe", "--chrome", "{photo}", "--chrome-circle", "32,32,1e308", "--fov", "40"], "--chrome-circle"),
+    (["probe", "--chrome", "{photo}", "--chrome-circle", "32,32,1e9", "--fov", "40"], "--chrome-circle"),
+    (["probe", "--chrome", "{photo}", "--chrome-circle", "8,8,1000", "--fov", "40"], "radius"),
+    (["probe", "--chrome", "{photo}", "--chrome-circle", "8,8,12", "--fov", "40"], "radius"),   # > half diagonal
+    (["probe", "--chrome", "{photo}", "--chrome-circle", "900,8,4", "--fov", "40"], "misses"),
+    (["probe", "--diffuse", "{photo}", "--diffuse-circle", "32,32,1e308"], "--diffuse-circle"),
+    (["probe", "--diffuse", "{photo}", "--diffuse-circle", "8,8,1000"], "radius"),
+], ids=lambda a: " ".join(a[3:5]) if isinstance(a, list) else "")
+def test_probe_circle_must_fit_the_image(argv, contains, world, tmp_path, capfd):
+    refused_unchanged(argv + ["--out", "{tmp}/p.json"], world, tmp_path, capfd, contains)
+    assert os.listdir(tmp_path) == []
+
+
+@pytest.mark.parametrize("field,value", [("render.res", 100000), ("render.res", 0), ("render.spp", 10 ** 7),
+                                         ("render.max_depth", 1000), ("room.texture_res", 100000),
+                                         ("room.texture_res", 0), ("render.res", 2.5)])
+@pytest.mark.parametrize("verb", ["render", "invert", "compare-dataset"])
+def test_scene_file_sizes_are_bounded(verb, field, value, world, tmp_path, capfd):
+    """A scene file's sizes have documented limits (relight.scene.spec.MAX_RES...), checked
+    when the file is read: one line naming the file and the field, before Mitsuba allocates."""
+    doc = json.loads(world["scene"].read_text())
+    part, key = field.split(".")
+    doc[part][key] = value
+    if verb == "compare-dataset":   # a dataset whose scene file is absurd
+        data = tmp_path / "D"
+        shutil.copytree(world["D"], data)
+        (data / "scenes" / "000000.json").write_text(json.dumps(doc))
+        argv = ["compare", world["preds"], "--data", data, "--out", tmp_path / "c", "--quiet"]
+        contains = "000000.json"
+    else:
+        bad = tmp_path / "bad.json"
+        bad.write_text(json.dumps(doc))
+        argv = {"render": ["render", bad, "--out", tmp_path / "r.png"],
+                "invert": ["invert", "--scene", bad, "--image", world["exr"], "--out", tmp_path / "i.json",
+                           "--quiet"]}[verb]
+        contains = "bad.json"
+    before = tree(tmp_path)
+    code, _, err = cli(argv, capfd)
+    assert_refused(code, err, contains)
+    assert field in err and tree(tmp_path) == before
+
+
+def test_scene_limits_match_the_options():
+    from relight.commands import argtypes
+    from relight.scene import spec
+    assert (spec.MAX_RES, spec.MAX_SPP) == (argtypes.MAX_RES, argtypes.MAX_SPP)
 
 
 # --- 8. a full disk, a quota, a read-only file system (issue 27) ---------------------------------

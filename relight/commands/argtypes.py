@@ -184,3 +184,22 @@ def loss_weights(text: str):
         raise argparse.ArgumentTypeError(
             f"expected three finite numbers in [0, 1e6], not all zero, like 1,1,1, got {text!r}")
     return LossWeights(pan=values[0], tilt=values[1], colour=values[2])
+
+
+# The largest image side relight reads (relight.imageio.MAX_IMAGE_PIXELS is 8192^2): no
+# circle of a readable image has a centre or radius beyond it.
+MAX_CIRCLE_PX = 65536
+
+
+def circle(text: str) -> tuple[float, float, float]:
+    """``CX,CY,R`` in pixels: three finite numbers, 0 < R and |CX|, |CY|, R at most
+    :data:`MAX_CIRCLE_PX` (the image itself: :func:`relight.commands.probe.check_circle_fits`)."""
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 3 or not all(math.isfinite(v) for v in values) or values[2] <= 0 \
+            or max(abs(v) for v in values) > MAX_CIRCLE_PX:
+        raise argparse.ArgumentTypeError(f"expected CX,CY,R (pixels, 0 < R, each at most {MAX_CIRCLE_PX}), "
+                                         f"got {text!r}")
+    return values
