@@ -336,7 +336,7 @@ def map_shards(scheduler, fn: Callable, context, ids: list, on_result: Callable,
     the client, as each shard finishes. ``fn`` must be a module-level function and
     ``context`` picklable; ``mitsuba``: the workers need Mitsuba (initialised once per
     process); ``shard_size``: fixed ids per task (default: see :func:`shards`);
-    ``progress``: print the worker count and dashboard on stderr. ``stats`` is filled
+    ``progress``: print the worker count and dashboard on stdout. ``stats`` is filled
     as the run goes (also when it fails)."""
     scheduler = as_scheduler(scheduler)
     stats = stats if stats is not None else EngineStats()
@@ -363,16 +363,17 @@ def _lost_message(exc: BaseException) -> str:
 
 
 def describe(c, local: bool = False) -> str:
-    """One line for stderr: worker count and the dashboard when there is one."""
+    """One line for stdout: worker count and the dashboard when there is one."""
     link = dashboard_link(c, local)
     text = f"dask: {n_workers(c)} worker processes"
     return text + (f", dashboard {link}" if link else "")
 
 
 def announce(c, local: bool = False) -> None:
-    """Print :func:`describe` on stderr above a progress bar."""
+    """Print :func:`describe` on stdout, with a command's other reports (stderr carries
+    progress bars and, for bad input, the one error line alone)."""
     from tqdm import tqdm
-    tqdm.write(describe(c, local), file=sys.stderr)
+    tqdm.write(describe(c, local), file=sys.stdout)
 
 
 def map_ordered(scheduler, fn: Callable, context, n: int, desc: str, progress: bool = True,

@@ -652,6 +652,44 @@ def test_corrupt_checkpoint_is_one_line(kind, resume, world, run_dir, tmp_path, 
     code, _, err = cli(argv, capfd)
     assert_refused(code, err, "checkpoint" if resume else "--resume")
     assert tree(tmp_path) == before
+    assert err.rstrip("\n").isprintable()   # no terminal escape codes or other control characters
+
+
+def test_library_messages_are_cut_at_a_word_without_terminal_codes():
+    """Checkpoint, model, image and mesh errors quote the library's reason through
+    relight.errors.brief: the first sentence of its first line, no escape codes, and when
+    still long, cut between words (marked ...), never mid-word."""
+    from relight.errors import brief
+    torchlike = ("\x1b[1mWeights only load failed\x1b[0m. In PyTorch 2.6, we changed the default value of the "
+                 "`weights_only` argument in `torch.load` from `False` to `True`.\nRe-running ...")
+    assert brief(RuntimeError(torchlike)) == "Weights only load failed"
+    long = "PytorchStreamReader failed reading zip archive: failed finding central directory " * 3
+    text = brief(long, limit=100)
+    assert text.endswith("...") and len(text) <= 103
+    assert long.startswith(text[:-3]) and long[len(text) - 3] == " "   # the cut falls between words
+    assert brief(EOFError()) == "EOFError"
+
+
+@pytest.mark.parametrize("given", [["{photo}", "{photo}"], ["{D}/images", "{D}/images/000001.png"],
+                                   ["{photo}", "{tmp}/link.png"]])
+def test_predict_refuses_one_image_given_twice(given, world, tmp_path, capfd):
+    os.symlink(world["photo"], tmp_path / "link.png")
+    code, _, err = cli(["predict", *fill(given, world, tmp_path), "--out", tmp_path / "p.json"], capfd)
+    assert_refused(code, err, "given twice")
+    assert not (tmp_path / "p.json").exists()
+
+
+def test_bad_input_on_dask_is_one_line_on_stderr(world, tmp_path, capfd):
+    """With --scheduler local:2 the engine's "dask: N worker processes" line goes to stdout
+    with the other reports: a bad input found by a worker is the one line on stderr."""
+    pytest.importorskip("distributed")
+    data = tmp_path / "D"
+    shutil.copytree(world["D"], data)
+    (data / "exr" / "000001.exr").write_bytes(b"not an exr")
+    code, out, err = cli(["baseline", "gray-world", "--data", data, "--split", "all", "--out", tmp_path / "b.json",
+                          "--scheduler", "local:2"], capfd)
+    assert_refused(code, err, "000001.exr")
+    assert not (tmp_path / "b.json").exists()
 
 
 def test_identical_train_command_resumes(world, run_dir, tmp_path, capfd):
@@ -696,7 +734,7 @@ BASE = {
 GENERIC_BAD = ["nan", "inf", "-inf", "1e308", "-1e308", "1e999", "abc", "", "99999999999999999999"]
 # values that are numbers of the right kind but out of range (zero, negative, too big)
 RANGE_BAD = {
-    "--count": ["-1", "1000001"], "--seed": ["-1", "4294967296"], "--res": ["0", "-16", "100000"],
+    "--count": ["0", "-1", "1000001"], "--seed": ["-1", "4294967296"], "--res": ["0", "-16", "100000"],
     "--spp": ["0", "-1"], "--max-depth": ["0"], "--workers": ["-2", "100000"], "--threads": ["0", "-3"],
     "--light-pan": ["1e9"], "--light-tilt": ["95", "-91", "1e308"], "--rgb": ["0,0,0", "-1,1,1", "1e308,1,1", "1,2"],
     "--epochs": ["0"], "--batch-size": ["0"], "--lr": ["0", "-1", "2"], "--patience": ["-1"],

@@ -37,7 +37,7 @@ import numpy as np
 import torch
 
 from relight.dataset import DatasetError
-from relight.errors import TrainingError
+from relight.errors import TrainingError, brief
 from relight.fileio import FolderLock, atomic_write, write_json
 from relight.net.data import LightDataset, dataset_folders, folders_record
 from relight.net.evaluate import errors_from_y, run_model
@@ -172,8 +172,7 @@ def _load_checkpoint(path: str) -> dict:
     try:
         state = torch.load(path, weights_only=True)
     except Exception as exc:  # noqa: BLE001 - torch raises many types for bad files
-        text = str(exc).splitlines()[0][:100] if str(exc) else type(exc).__name__
-        raise DatasetError(f"{path}: cannot read checkpoint ({text}); delete it to start over") from None
+        raise DatasetError(f"{path}: cannot read checkpoint ({brief(exc)}); delete it to start over") from None
     keys = ("model", "optimiser", "scheduler", "epoch", "history", "best_val_loss", "settings", "torch_rng")
     if not isinstance(state, dict) or any(k not in state for k in keys) \
             or not isinstance(state["settings"], dict) or not isinstance(state["history"], list):
@@ -354,7 +353,7 @@ def _train_locked(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, 
             torch.set_rng_state(state["torch_rng"])
         except (RuntimeError, ValueError, TypeError, KeyError, AttributeError) as exc:
             raise DatasetError(f"{ckpt_path}: checkpoint does not match this network "
-                               f"({str(exc).splitlines()[0][:100]}); delete it to start over") from None
+                               f"({brief(exc)}); delete it to start over") from None
     settings = cfg.to_dict() | {"out_dir": out_dir, "parameters": count_parameters(model)}
     if init_model is not None:   # the starting point: the loaded model's val loss before any step
         if state is None:
