@@ -281,11 +281,15 @@ def _disk_errno(exc: BaseException, path: str) -> int | None:
             if words.replace(" ", "") in text:
                 return code
         e = e.__cause__ or e.__context__
-    if isinstance(exc, (OSError, RuntimeError)) or type(exc).__name__.endswith("Error"):
+    # I/O errors of the writing libraries (torch, OpenEXR, Pillow, safetensors), not
+    # programming errors (ValueError, TypeError...), which stay bugs whatever the disk
+    if isinstance(exc, OSError) and exc.errno is not None:
+        return None   # the OS said what it was (no permission, no such file...)
+    if isinstance(exc, (OSError, RuntimeError)) or "Safetensor" in type(exc).__name__:
         free, read_only = _free_space(path)
         if read_only:
             return errno.EROFS
-        if free is not None and free < FULL_MARGIN and not isinstance(exc, (RelightError, MemoryError)):
+        if free is not None and free < FULL_MARGIN:
             return errno.ENOSPC
     return None
 
