@@ -11,6 +11,10 @@ run) is held with an OS lock (:class:`FolderLock`) for the whole run; a second w
 gets :class:`OutputError`. Temporary files left by a killed process are removed by
 the next writer (:func:`remove_temps`) and ignored by every folder reader
 (:func:`is_temp_name`).
+
+A write the file system refuses (full disk, quota, read-only: :func:`disk_error`) or any
+OS error on an output is one :class:`OutputError` naming the output as the user gave it
+(:func:`name_outputs`, :func:`describe_output`), never the temporary file.
 """
 from __future__ import annotations
 
