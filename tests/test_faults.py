@@ -4,8 +4,12 @@ Every class of failure of issue 12 is tried against the command line: outputs eq
 to inputs for every verb, concurrent writers, SIGKILL of a single-process and of a
 multi-worker ``generate``, images of every PNG mode and bit depth (and broken or
 over-large ones), corrupt checkpoints, a bad-argument sweep of every numeric option
-of every verb, and half-written leftovers. A refused command must exit 2 with exactly
-one line on stderr, no traceback, and leave the input tree byte-identical.
+of every verb, and half-written leftovers; and those of issue 27: an output folder that
+holds an input (``train --init RUN/best.safetensors --out RUN``), a full, and a read-only,
+file system (a real small tmpfs, as root), sizes against the image or a documented limit,
+one image given twice, library messages cut mid-word, and the committed float references
+under last-bit changes. A refused command must exit 2 with exactly one line on stderr, no
+traceback, and leave the input tree byte-identical.
 
 Refusals run ``relight.cli.main`` in this process with file-descriptor capture (the
 same code path as the console script, and it also sees what C++ libraries print on
