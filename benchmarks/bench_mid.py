@@ -80,7 +80,7 @@ def main(argv=None) -> int:
 
     split = "test" if any(r["split"] == "test" for r in records) else "all"
     if split == "all":
-        print(f"smoke run: {args.scenes} room(s) hold no test room (room 4 is the first), so the tables score "
+        print(f"smoke run: {args.scenes} room{'s' if args.scenes > 1 else ''} hold no test room (room 4 is the first), so the tables score "
               "every image, training ones included: they exercise the steps, they are not results")
 
     results, timings = {}, {}
