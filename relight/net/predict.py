@@ -159,7 +159,9 @@ def list_images(paths: list[str]) -> list[str]:
         st = os.stat(f)
         key = (st.st_dev, st.st_ino)
         if key in seen:
-            raise ImageError(f"image {f} is given twice (also as {seen[key]}); give each image once")
+            also = "" if f == seen[key] else f" (also as {seen[key]})"
+            raise ImageError(f"image {f} is given twice{also}; give each image once (a file and its "
+                             "folder name it twice)")
         seen[key] = f
     return out
 
