@@ -160,8 +160,8 @@ def list_images(paths: list[str]) -> list[str]:
         key = (st.st_dev, st.st_ino)
         if key in seen:
             also = "" if f == seen[key] else f" (also as {seen[key]})"
-            raise ImageError(f"image {f} is given twice{also}; give each image once (a file and its "
-                             "folder name it twice)")
+            raise ImageError(f"image {f} is given twice{also}; give each image once (a file and "
+                             "its folder, or a link to it, name it twice)")
         seen[key] = f
     return out
 
