@@ -45,10 +45,25 @@ def test_readme_lists_the_benchmarks():
         assert os.path.isfile(os.path.join(REPO, argv[0])), argv[0]
 
 
+def _run_here(argv, capfd, monkeypatch):
+    """Run a benchmark script as ``__main__`` in this process (its heavy imports are shared
+    between the cases); returns (exit code, stdout, stderr)."""
+    import runpy
+    monkeypatch.setattr(sys, "argv", [os.path.join(REPO, argv[0]), *argv[1:]])
+    monkeypatch.chdir(REPO)
+    try:
+        runpy.run_path(os.path.join(REPO, argv[0]), run_name="__main__")
+        code = 0
+    except SystemExit as exc:
+        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+    out, err = capfd.readouterr()
+    return code, out, err
+
+
 @pytest.mark.parametrize("argv", COMMANDS, ids=lambda a: os.path.basename(a[0]))
-def test_quick_command_arguments_are_valid(argv):
-    r = _run(argv + ["--check-args"])
-    assert r.returncode == 0 and "arguments ok" in r.stdout, f"README row {' '.join(argv)}: {r.stderr.strip()}"
+def test_quick_command_arguments_are_valid(argv, capfd, monkeypatch):
+    code, out, err = _run_here(argv + ["--check-args"], capfd, monkeypatch)
+    assert code == 0 and "arguments ok" in out, f"README row {' '.join(argv)}: {err.strip()}"
 
 
 def _bad_variants(argv):
@@ -62,15 +77,20 @@ def _bad_variants(argv):
 
 
 @pytest.mark.parametrize("argv", COMMANDS, ids=lambda a: os.path.basename(a[0]))
-def test_bad_benchmark_setting_is_one_line(argv):
+def test_bad_benchmark_setting_is_one_line(argv, capfd, monkeypatch):
     variants = list(_bad_variants(argv))
     if not variants:
         pytest.skip("no numeric option in this command")
     for option, bad in variants:
-        r = _run(bad)
-        lines = r.stderr.strip().splitlines()
-        assert r.returncode == 2 and len(lines) == 1, r.stderr
-        assert "error:" in lines[0] and option in lines[0] and "Traceback" not in r.stderr
+        code, _, err = _run_here(bad, capfd, monkeypatch)
+        lines = err.strip().splitlines()
+        assert code == 2 and len(lines) == 1, err
+        assert "error:" in lines[0] and option in lines[0] and "Traceback" not in err
+
+
+def test_bad_setting_through_a_real_process():
+    r = _run(["benchmarks/bench_compare.py", "--count", "0", "--res", "32"])
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "--count" in r.stderr
 
 
 def test_mid_benchmark_refuses_zero_rooms():
