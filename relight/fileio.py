@@ -238,7 +238,7 @@ def describe_output(path) -> str:
 
 
 DISK_ERRNOS = {errno.ENOSPC: "no space left on the device", errno.EDQUOT: "disk quota exceeded",
-                errno.EROFS: "read-only file system", errno.EFBIG: "file too large for the file system"}
+               errno.EROFS: "read-only file system", errno.EFBIG: "file too large for the file system"}
 # What libraries that drop the errno say instead (safetensors, OpenEXR, numpy).
 _DISK_WORDS = (("no space left", errno.ENOSPC), ("storagefull", errno.ENOSPC),
                ("disk quota", errno.EDQUOT), ("quotaexceeded", errno.EDQUOT),
