@@ -28,7 +28,6 @@ import json
 import math
 import multiprocessing as mp
 import os
-import shutil
 import signal
 import sys
 import threading
