@@ -40,7 +40,7 @@ from relight import frames
 from relight.fileio import LOCK_NAME, FolderLock, append_line, remove_temps, write_bytes, write_json
 from relight.scene.sampling import LEGACY_CONFIG, GeneratorConfig, sample_scene, split_of
 from relight.scene.spec import SceneSpec
-from relight.errors import DatasetError, RelightError
+from relight.errors import DatasetError, DiskFullError, RelightError
 
 DATASET_FORMAT = "relight.dataset/v1"
 MANIFEST = "manifest.jsonl"
@@ -323,7 +323,7 @@ def _worker(out, cfg, seed, indices, threads, queue, parent_pid=None, watch=None
         _pipeline(out, cfg, seed, indices, lambda record, render_s: queue.put(("ok", record, render_s)))
     except BaseException as exc:  # report to the parent, which stops cleanly
         if isinstance(exc, RelightError):   # a user error (a full disk...): said as the worker said it
-            queue.put(("user-error", str(exc), 0.0))
+            queue.put(("disk-full" if isinstance(exc, DiskFullError) else "user-error", str(exc), 0.0))
         else:
             queue.put(("error", f"{type(exc).__name__}: {exc}", 0.0))
 
@@ -363,7 +363,10 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
     old_card = open(card_path, "rb").read() if os.path.isfile(card_path) else None
     stats = GenerateStats()
     try:
-        return _generate_locked(out, count, seed, cfg, workers, progress, threads, stats, scheduler)
+        try:
+            return _generate_locked(out, count, seed, cfg, workers, progress, threads, stats, scheduler)
+        except DiskFullError as exc:
+            raise DiskFullError(f"{exc}{_room_needed(out, count)}") from None
     except BaseException:
         if stats.written == 0:   # nothing made: leave the folder as it was
             if not existed:
@@ -383,6 +386,22 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
         raise
     finally:
         lock.release()
+
+
+def _room_needed(out: str, count: int) -> str:
+    """`` (the N images left need about X)`` from the finished images' files, or ''."""
+    from relight.fileio import human_size, is_temp_name
+    try:
+        done = {r["id"] for r in read_manifest(out)} if _has_records(out) else set()
+        size = sum(os.path.getsize(os.path.join(out, sub, n)) for sub in ("images", "exr", "scenes")
+                   for n in os.listdir(os.path.join(out, sub))
+                   if not is_temp_name(n) and os.path.splitext(n)[0] in done)
+    except (OSError, RelightError):
+        return ""
+    left = count - len(done)
+    if not done or left <= 0:
+        return ""
+    return f" (the {left} images left need about {human_size(size / len(done) * left)})"
 
 
 def _check_meshes(cfg: GeneratorConfig) -> None:
@@ -450,6 +469,8 @@ def _generate_locked(out: str, count: int, seed: int, cfg: GeneratorConfig, work
             try:
                 for _ in range(len(todo)):
                     status, payload, render_s = queue.get()
+                    if status == "disk-full":
+                        raise DiskFullError(payload)
                     if status == "user-error":
                         raise DatasetError(payload)
                     if status == "error":

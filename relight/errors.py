@@ -39,6 +39,10 @@ class OutputError(RelightError, ValueError):
     expected, or a folder another relight process is writing."""
 
 
+class DiskFullError(OutputError):
+    """The file system refused an output's bytes: full, over quota or read-only."""
+
+
 class PredictionsError(RelightError, ValueError):
     """A predictions file or entry is malformed (the message names the entry)."""
 

@@ -26,7 +26,7 @@ import re
 import secrets
 import shutil
 import sys
-from relight.errors import OutputError, RelightError
+from relight.errors import DiskFullError, OutputError, RelightError
 
 TEMP_MARK = ".relight-tmp-"
 LOCK_NAME = ".relight.lock"
@@ -262,7 +262,8 @@ def _free_space(path: str) -> tuple[int | None, bool]:
     return st.f_bavail * st.f_frsize, bool(st.f_flag & os.ST_RDONLY)
 
 
-def _human(n: int) -> str:
+def human_size(n: float) -> str:
+    """Bytes for a person: ``512 B``, ``28.0 KB``, ``1.2 MB``."""
     for unit in ("B", "KB", "MB", "GB", "TB"):
         if n < 1024 or unit == "TB":
             return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
@@ -299,8 +300,8 @@ def _disk_errno(exc: BaseException, path: str) -> int | None:
 
 
 def disk_error(exc: BaseException, path, size: int | None = None, partial: int | None = None
-               ) -> OutputError | None:
-    """The one-line :class:`OutputError` for a write of ``path`` that the file system
+               ) -> DiskFullError | None:
+    """The one-line :class:`~relight.errors.DiskFullError` (an :class:`OutputError`) for a write of ``path`` that the file system
     refused (``ENOSPC``, ``EDQUOT``, ``EROFS``, ``EFBIG``), naming the output and the
     free space: ``size``, the bytes the file needs, where known, else ``partial``, the
     bytes it had reached when the disk filled (it needs more); None otherwise."""
@@ -311,13 +312,13 @@ def disk_error(exc: BaseException, path, size: int | None = None, partial: int |
     what = DISK_ERRNOS[code]
     if code in (errno.ENOSPC, errno.EDQUOT):
         free, _ = _free_space(path)
-        need = (f"; it needs {_human(size)}" if size else
-                f"; it needs more than the {_human(partial)} written" if partial else "")
-        room = f" ({_human(free)} free{need})" if free is not None else ""
+        need = (f"; it needs {human_size(size)}" if size else
+                f"; it needs more than the {human_size(partial)} written" if partial else "")
+        room = f" ({human_size(free)} free{need})" if free is not None else ""
         hint = "; free some space (or choose another --out) and re-run the same command"
     else:
         room, hint = "", "; choose another --out"
-    return OutputError(f"cannot write {describe_output(path)}: {what}{room}{hint}")
+    return DiskFullError(f"cannot write {describe_output(path)}: {what}{room}{hint}")
 
 
 def write_error(exc: BaseException, path, tmp: str | None = None, size: int | None = None,

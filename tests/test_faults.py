@@ -948,7 +948,8 @@ def test_full_disk_is_one_line_naming_the_output(verb, free, small_fs, world, tm
     assert not temps_under(mnt) and tree(world["root"]) == inputs
     left = sorted(os.listdir(mnt))
     if verb == "generate" and "G" in left:             # finished images stay, each with its record
-        check_complete(mnt / "G")
+        if check_complete(mnt / "G"):
+            assert "images left need about" in err     # the room the rest of the run needs
         assert not _unrecorded(mnt / "G")
         os.remove(mnt / "filler")                      # space comes back: the same command resumes
         code, _, err = cli(fill(argv, world, tmp_path), capfd)
@@ -993,7 +994,7 @@ def test_disk_errors_are_named_without_a_disk():
     import errno as E
 
     from relight import fileio
-    from relight.errors import OutputError
+    from relight.errors import DiskFullError, OutputError
     fileio.name_outputs({"--out": "/data/run"})
     try:
         tmp = fileio.temp_path("/data/run/best.safetensors")
@@ -1004,7 +1005,7 @@ def test_disk_errors_are_named_without_a_disk():
                            (RuntimeError("Error while serializing: I/O error: No space left on device (os "
                                          "error 28)"), "no space left")):
             err = fileio.disk_error(exc, tmp, size=2048)
-            assert isinstance(err, OutputError) and words in str(err)
+            assert isinstance(err, DiskFullError) and isinstance(err, OutputError) and words in str(err)
             assert "--out /data/run (best.safetensors)" in str(err) and TEMP_HINT not in str(err)
         assert "2.0 KB" in str(fileio.disk_error(OSError(E.ENOSPC, "x"), tmp, size=2048))
         assert fileio.disk_error(ValueError("bad value"), "/tmp/x") is None   # not a disk problem
