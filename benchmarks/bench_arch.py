@@ -19,14 +19,15 @@ time (every epoch end of either run), and the better one at the last common time
 """
 from __future__ import annotations
 
-import argparse
 import os
 import statistics
+import sys
 import tempfile
 import time
 
 import torch
 
+from relight.commands import argtypes as at
 from relight.net.io import save_model
 from relight.net.loss import light_loss
 from relight.net.model import ARCHES, LightNet, NetConfig, count_parameters, flops_per_image
@@ -139,14 +140,14 @@ def compare_runs(runs: list[str]) -> None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--threads", type=int, nargs="+", default=[1, 2])
-    ap.add_argument("--repeats", type=int, default=60)
-    ap.add_argument("--train-steps", type=int, default=5)
+    ap = at.OneLineParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--threads", type=at.threads, nargs="+", default=[1, 2])
+    ap.add_argument("--repeats", type=at.int_in(1, 100_000, "a count"), default=60)
+    ap.add_argument("--train-steps", type=at.int_in(1, 100_000, "a count"), default=5)
     ap.add_argument("--data", default=None, help="dataset: also compare accuracy at equal training time")
     ap.add_argument("--test", default=None, help="test dataset (default: --data's val split)")
-    ap.add_argument("--minutes", type=float, default=60.0, help="training minutes per encoder")
-    ap.add_argument("--res", type=int, default=RES, help="training image size")
+    ap.add_argument("--minutes", type=at.minutes, default=60.0, help="training minutes per encoder")
+    ap.add_argument("--res", type=at.net_resolution, default=RES, help="training image size")
     ap.add_argument("--out", default=os.path.expanduser("~/relight-data/arch-eqtime"),
                     help="folder of the training runs")
     ap.add_argument("--runs", nargs=2, metavar="RUN", default=None,
@@ -185,4 +186,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(at.run_script(main))

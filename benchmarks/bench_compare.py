@@ -8,7 +8,6 @@ noise-floor render of the true light), so a ratio near 2 means little overhead.
 """
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import tempfile
@@ -16,13 +15,15 @@ import time
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
+from relight.commands import argtypes as at  # noqa: E402
+
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--count", type=int, default=6)
-    ap.add_argument("--res", type=int, default=128)
-    ap.add_argument("--spp", type=int, default=64)
-    ap.add_argument("--seed", type=int, default=5)
+    ap = at.OneLineParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--count", type=at.int_in(1, 100_000, "a count"), default=6)
+    ap.add_argument("--res", type=at.resolution, default=128)
+    ap.add_argument("--spp", type=at.spp, default=64)
+    ap.add_argument("--seed", type=at.seed, default=5)
     args = ap.parse_args()
 
     from relight import backend
@@ -67,4 +68,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(at.run_script(main))

@@ -27,7 +27,6 @@ Usage: python benchmarks/bench_cycles.py [--n 4] [--res 128] [--ref-spp 2048]
 """
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import hashlib
 import math
@@ -35,6 +34,8 @@ import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from relight.commands import argtypes as at  # noqa: E402
 
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
@@ -188,10 +189,10 @@ def time_at(times: dict[int, float], spp: float) -> float:
 
 # --------------------------------------------------------------------------- main
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--n", type=int, default=4, help="scenes")
-    ap.add_argument("--res", type=int, default=128)
-    ap.add_argument("--ref-spp", type=int, default=2048, help="samples of the converged references")
+    ap = at.OneLineParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=at.int_in(1, 100_000, "a count"), default=4, help="scenes")
+    ap.add_argument("--res", type=at.resolution, default=128)
+    ap.add_argument("--ref-spp", type=at.spp, default=2048, help="samples of the converged references")
     ap.add_argument("--targets", default="0.03,0.015,0.0075", help="relative RMSE targets")
     ap.add_argument("--cache", default=DEFAULT_CACHE, help="folder of cached references")
     args = ap.parse_args(argv)
@@ -281,4 +282,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(at.run_script(main))

@@ -25,13 +25,14 @@ Usage: python benchmarks/bench_engine.py [--n 32] [--res 128] [--spp N]
 """
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import tempfile
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from relight.commands import argtypes as at  # noqa: E402
 
 from relight.generator.run import generate  # noqa: E402
 from relight.generator.sampling import GeneratorConfig  # noqa: E402
@@ -90,11 +91,11 @@ def warm_run(cfg: GeneratorConfig, tmp: str, n: int, n_proc: int, threads: int, 
 
 
 def main() -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--n", type=int, default=32, help="images per run (default 32)")
-    p.add_argument("--res", type=int, default=128, help="image size (default 128)")
-    p.add_argument("--spp", type=int, default=None, help="samples per pixel (default: noise target)")
-    p.add_argument("--tasks", type=int, default=12, help="tasks for the overhead figure (default 12)")
+    p = at.OneLineParser(description=__doc__.splitlines()[0])
+    p.add_argument("--n", type=at.int_in(1, 100_000, "a count"), default=32, help="images per run (default 32)")
+    p.add_argument("--res", type=at.resolution, default=128, help="image size (default 128)")
+    p.add_argument("--spp", type=at.spp, default=None, help="samples per pixel (default: noise target)")
+    p.add_argument("--tasks", type=at.int_in(1, 100_000, "a count"), default=12, help="tasks for the overhead figure (default 12)")
     args = p.parse_args()
     cfg = GeneratorConfig(res=args.res, **({"spp": args.spp} if args.spp else {}))
     cores = os.cpu_count() or 1
@@ -133,4 +134,4 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(at.run_script(main))

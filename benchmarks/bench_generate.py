@@ -32,6 +32,8 @@ import time
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
+from relight.commands import argtypes as at  # noqa: E402
+
 import dataclasses  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -100,12 +102,12 @@ def equal_error_table(res: int, target: float) -> None:
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--n", type=int, default=48, help="images per measurement")
-    ap.add_argument("--res", type=int, default=128)
-    ap.add_argument("--spp", type=int, default=None, help="samples per pixel (default: from the target)")
-    ap.add_argument("--target-rmse", type=float, default=noise.DEFAULT_TARGET_RMSE)
-    ap.add_argument("--workers", type=int, default=2, help="also measure this many worker processes (1: skip)")
+    ap = at.OneLineParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=at.int_in(1, 100_000, "a count"), default=48, help="images per measurement")
+    ap.add_argument("--res", type=at.resolution, default=128)
+    ap.add_argument("--spp", type=at.spp, default=None, help="samples per pixel (default: from the target)")
+    ap.add_argument("--target-rmse", type=at.relative_rmse, default=noise.DEFAULT_TARGET_RMSE)
+    ap.add_argument("--workers", type=at.workers, default=2, help="also measure this many worker processes (1: skip)")
     ap.add_argument("--calibrate", action=argparse.BooleanOptionalAction, default=True,
                     help="print the equal-error sampler table first (default on)")
     ap.add_argument("--cycles", action=argparse.BooleanOptionalAction, default=True,
@@ -171,4 +173,4 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(at.run_script(main))

@@ -21,7 +21,6 @@ The scenes are made in memory from the generator's sampler (no dataset needed)::
 """
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import math
 import os
@@ -31,6 +30,8 @@ import time
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from relight.commands import argtypes as at  # noqa: E402
 
 REF_RES, REF_SPP, REF_STEP_DEG, REF_SEED = 64, 512, 0.25, 11
 OFFSET_DEG = 5.0
@@ -178,14 +179,14 @@ def invert_study(scenes, gradients):
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--n", type=int, default=6, help="scenes per group (two groups)")
-    ap.add_argument("--res", type=int, default=128, help="target image size (px)")
-    ap.add_argument("--spp", type=int, default=64, help="samples per pixel of the targets")
-    ap.add_argument("--seed", type=int, default=41)
+    ap = at.OneLineParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=at.int_in(1, 100_000, "a count"), default=6, help="scenes per group (two groups)")
+    ap.add_argument("--res", type=at.resolution, default=128, help="target image size (px)")
+    ap.add_argument("--spp", type=at.spp, default=64, help="samples per pixel of the targets")
+    ap.add_argument("--seed", type=at.seed, default=41)
     ap.add_argument("--no-invert", action="store_true", help="skip the end-to-end study")
     ap.add_argument("--gradients", default="fd,ad,ad-shading", help="Jacobians of the invert study")
-    ap.add_argument("--threads", type=int, default=None)
+    ap.add_argument("--threads", type=at.threads, default=None)
     args = ap.parse_args(argv)
     if args.n < 1 or args.res % 64:
         ap.error("--n >= 1 and --res a multiple of 64 expected")
@@ -204,4 +205,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(at.run_script(main))

@@ -23,7 +23,6 @@ direction moved 8 deg in a random direction) and are labelled so.
 """
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import sys
@@ -32,6 +31,8 @@ import time
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from relight.commands import argtypes as at  # noqa: E402
 
 STANDIN_OFFSET_DEG = 8.0
 REF_SPP, REF_STEP_DEG, REF_RES = 512, 0.25, 64
@@ -147,15 +148,15 @@ def gradient_study(recs, data, n):
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = at.OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=os.path.join("~", "relight-data", "inv_bench"),
                     help="dataset folder (made when missing; default ~/relight-data/inv_bench)")
-    ap.add_argument("--n", type=int, default=10, help="images (first N of the manifest, all splits)")
+    ap.add_argument("--n", type=at.int_in(1, 100_000, "a count"), default=10, help="images (first N of the manifest, all splits)")
     ap.add_argument("--model", default=None, help="network model file (default: shipped)")
     ap.add_argument("--out-dir", default="/tmp/bench_inverse", help="predictions, traces and the plot")
-    ap.add_argument("--plot-n", type=int, default=3, help="images in the convergence plot")
-    ap.add_argument("--grad-n", type=int, default=3, help="images in the gradient study (0: skip)")
-    ap.add_argument("--threads", type=int, default=None)
+    ap.add_argument("--plot-n", type=at.int_in(0, 100_000, "a count"), default=3, help="images in the convergence plot")
+    ap.add_argument("--grad-n", type=at.int_in(0, 100_000, "a count"), default=3, help="images in the gradient study (0: skip)")
+    ap.add_argument("--threads", type=at.threads, default=None)
     args = ap.parse_args(argv)
 
     from relight import backend
@@ -303,9 +304,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    from relight.cli import user_errors
-    try:
-        sys.exit(main())
-    except user_errors() as exc:   # bad --data and the like: one line, exit 2
-        print(f"bench_inverse: {exc}", file=sys.stderr)
-        sys.exit(2)
+    sys.exit(at.run_script(main))

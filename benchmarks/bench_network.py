@@ -17,13 +17,14 @@ over one image's, timed the same way. The latency columns give the median and th
 """
 from __future__ import annotations
 
-import argparse
 import copy
 import statistics
+import sys
 import time
 
 import torch
 
+from relight.commands import argtypes as at
 from relight.net.loss import light_loss
 from relight.net.model import LightNet, MirrorAveraged, NetConfig, count_parameters, flops_per_image
 
@@ -106,12 +107,12 @@ def bench(res: int, threads: int, repeats: int, batch: int, train_batch: int, mo
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--res", type=int, default=128)
-    ap.add_argument("--threads", type=int, nargs="+", default=[1, 2])
-    ap.add_argument("--repeats", type=int, default=20)
-    ap.add_argument("--batch", type=int, default=64, help="inference batch size")
-    ap.add_argument("--train-batch", type=int, default=16, help="training batch size (the paper's 16)")
+    ap = at.OneLineParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--res", type=at.net_resolution, default=128)
+    ap.add_argument("--threads", type=at.threads, nargs="+", default=[1, 2])
+    ap.add_argument("--repeats", type=at.int_in(1, 100_000, "a count"), default=20)
+    ap.add_argument("--batch", type=at.batch_size, default=64, help="inference batch size")
+    ap.add_argument("--train-batch", type=at.batch_size, default=16, help="training batch size (the paper's 16)")
     ap.add_argument("--model", default=None, help="time this model file or run folder ('shipped': the "
                     "package's model) instead of a fresh small network; its own resolution")
     args = ap.parse_args()
@@ -146,4 +147,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(at.run_script(main))

@@ -14,7 +14,6 @@ through the same path as the command line. Methods:
 """
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import tempfile
@@ -22,6 +21,8 @@ import tempfile
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from relight.commands import argtypes as at  # noqa: E402
 
 PSM = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "..", "shared", "data",
                    "psm_spheres")
@@ -102,10 +103,10 @@ def _psm(rows: list, qa_dir: str | None) -> None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--count", type=int, default=12, help="scenes per kind (plain, clutter)")
-    ap.add_argument("--spp", type=int, default=64)
-    ap.add_argument("--seed", type=int, default=100)
+    ap = at.OneLineParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--count", type=at.int_in(1, 100_000, "a count"), default=12, help="scenes per kind (plain, clutter)")
+    ap.add_argument("--spp", type=at.spp, default=64)
+    ap.add_argument("--seed", type=at.seed, default=100)
     ap.add_argument("--keep", default=None, help="folder to keep the renders (reused) and QA overlays")
     args = ap.parse_args()
 
@@ -138,4 +139,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(at.run_script(main))

@@ -31,6 +31,8 @@ COMMAND_MODULES = [
 ]
 
 EXIT_USAGE = 2
+# Options that name an output: errors while writing one name the option and the path given.
+OUTPUT_OPTIONS = ("out", "trace", "qa")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -75,17 +77,30 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.threads is not None:
         os.environ["RELIGHT_THREADS"] = str(args.threads)
+    from relight import fileio
+    fileio.name_outputs({f"--{name}": getattr(args, name, None) for name in OUTPUT_OPTIONS})
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt:
         sys.stderr.write("relight: interrupted (re-run the same command to resume)\n")
         return 130
     except user_errors() as exc:
-        text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        if isinstance(exc, OSError) and exc.filename:
-            text = f"{exc.strerror}: {exc.filename}"
-        sys.stderr.write(f"relight: error: {text}\n")
-        return EXIT_USAGE
+        return _one_line(exc)
+    except OSError as exc:   # the file system refused an output outside the writers (a folder, a lock)
+        path = exc.filename or next((getattr(args, n) for n in OUTPUT_OPTIONS if getattr(args, n, None)), ".")
+        err = fileio.disk_error(exc, path) if exc.errno in fileio.DISK_ERRNOS else None
+        if err is None:
+            raise
+        return _one_line(err)
+
+
+def _one_line(exc: BaseException) -> int:
+    text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    if isinstance(exc, OSError) and exc.filename:
+        from relight.fileio import describe_output
+        text = f"{exc.strerror}: {describe_output(exc.filename)}"
+    sys.stderr.write(f"relight: error: {text}\n")
+    return EXIT_USAGE
 
 
 if __name__ == "__main__":

@@ -355,7 +355,8 @@ def map_shards(scheduler, fn: Callable, context, ids: list, on_result: Callable,
     an address or a :class:`Scheduler`) and call ``on_result(shard, value)`` here, in
     the client, as each shard finishes. ``fn`` must be a module-level function and
     ``context`` picklable; ``plan``: threads, Mitsuba, shard size and progress
-    (:class:`ShardPlan`). ``stats`` is filled as the run goes (also when it fails)."""
+    (:class:`ShardPlan`; with ``progress`` the worker count and dashboard go to stdout).
+    ``stats`` is filled as the run goes (also when it fails)."""
     scheduler = as_scheduler(scheduler)
     stats = stats if stats is not None else EngineStats()
     t0 = time.perf_counter()
@@ -382,16 +383,17 @@ def _lost_message(exc: BaseException) -> str:
 
 
 def describe(c, local: bool = False) -> str:
-    """One line for stderr: worker count and the dashboard when there is one."""
+    """One line for stdout: worker count and the dashboard when there is one."""
     link = dashboard_link(c, local)
     text = f"dask: {n_workers(c)} worker processes"
     return text + (f", dashboard {link}" if link else "")
 
 
 def announce(c, local: bool = False) -> None:
-    """Print :func:`describe` on stderr above a progress bar."""
+    """Print :func:`describe` on stdout, with a command's other reports (stderr carries
+    progress bars and, for bad input, the one error line alone)."""
     from tqdm import tqdm
-    tqdm.write(describe(c, local), file=sys.stderr)
+    tqdm.write(describe(c, local), file=sys.stdout)
 
 
 def map_ordered(scheduler, fn: Callable, context, n: int, desc: str, plan: ShardPlan = ShardPlan(),

@@ -45,6 +45,10 @@ class OutputError(RelightError, ValueError):
     expected, or a folder another relight process is writing."""
 
 
+class DiskFullError(OutputError):
+    """The file system refused an output's bytes: full, over quota or read-only."""
+
+
 class PredictionsError(RelightError, ValueError):
     """A predictions file or entry is malformed (the message names the entry)."""
 
@@ -76,3 +80,35 @@ class EngineError(RelightError, RuntimeError):
 
 class BlenderError(RelightError, RuntimeError):
     """bpy is missing or a scene cannot be expressed in Cycles."""
+
+
+# -- one line from a library's message ------------------------------------------------------
+import re as _re
+
+_ESCAPES = _re.compile(r"\x1b\[[0-?]*[ -/]*[@-~]|\x1b[@-_]")   # terminal colour / cursor codes
+
+
+def brief(exc: BaseException | str, limit: int = 120) -> str:
+    """A library's error message as a short clause for a one-line error: its first line
+    without terminal escape codes or control characters, its first sentence, and cut at a word (never mid-word, marked ``...``) when still over ``limit``.
+
+    >>> brief(RuntimeError("Weights only load failed. In PyTorch 2.6, we changed ..."))
+    'Weights only load failed'
+    >>> brief("\\x1b[1mbad\\x1b[0m header\\nsecond line")
+    'bad header'
+    >>> brief("one two three four", limit=12)
+    'one two...'
+    """
+    text = str(exc) if not isinstance(exc, str) else exc
+    if not text.strip():
+        return type(exc).__name__ if not isinstance(exc, str) else ""
+    text = _ESCAPES.sub("", text)
+    line = next((ln for ln in text.splitlines() if ln.strip()), "")
+    line = " ".join("".join(ch if ch.isprintable() else " " for ch in line).split())
+    if ". " in line:   # the first sentence says what happened; the rest is advice for other readers
+        line = line.split(". ", 1)[0]
+    line = line.rstrip(". ")
+    if len(line) > limit:
+        cut = line[:limit + 1].rsplit(" ", 1)[0] if " " in line[:limit + 1] else line[:limit]
+        line = cut.rstrip(" ,;:(") + "..."
+    return line

@@ -11,6 +11,10 @@ run) is held with an OS lock (:class:`FolderLock`) for the whole run; a second w
 gets :class:`OutputError`. Temporary files left by a killed process are removed by
 the next writer (:func:`remove_temps`) and ignored by every folder reader
 (:func:`is_temp_name`).
+
+A write the file system refuses (full disk, quota, read-only: :func:`disk_error`) or any
+OS error on an output is one :class:`OutputError` naming the output as the user gave it
+(:func:`name_outputs`, :func:`describe_output`), never the temporary file.
 """
 from __future__ import annotations
 
@@ -28,7 +32,7 @@ import re
 import secrets
 import shutil
 import sys
-from relight.errors import OutputError
+from relight.errors import DiskFullError, OutputError, RelightError
 
 TEMP_MARK = ".relight-tmp-"
 LOCK_NAME = ".relight.lock"
@@ -104,11 +108,22 @@ def _inside(path: str, folder: str) -> bool:
 def check_outputs(outputs, inputs=(), replaces_folder: bool = False) -> None:
     """Refuse outputs that would destroy an input (raises :class:`OutputError`).
 
-    An output is refused when it resolves (links followed) to one of ``inputs``, or
-    lies in a part of an input dataset folder that the dataset owns (its manifest,
-    card, images/, exr/, scenes/). With ``replaces_folder`` (the output is a folder
-    replaced as a whole) it is also refused when an input lies inside it.
+    The one rule every command applies to every output (file or folder) and every input
+    (data folders, ``--init`` / ``--model`` weights, scene, prediction and image files),
+    links followed:
+
+    * an output that resolves to an input is refused;
+    * an output that lies in a part of an input dataset folder that the dataset owns
+      (its manifest, card, images/, exr/, scenes/) is refused;
+    * an output folder that holds an input is refused: a command writes its folder's
+      files by name (``train``'s ``best.safetensors``, ``evaluate``'s reports, a
+      dataset's images), so an input kept there could be replaced (``train --out RUN
+      --init RUN/best.safetensors`` would lose the init model).
+
+    ``replaces_folder`` is accepted for older callers; the third rule now holds for every
+    output.
     """
+    del replaces_folder
     inputs = [os.fspath(i) for i in inputs if i is not None]
     for out in outputs:
         if out is None:
@@ -122,8 +137,9 @@ def check_outputs(outputs, inputs=(), replaces_folder: bool = False) -> None:
                 if rel.split(os.sep)[0] in DATASET_OWNED:
                     raise OutputError(f"output {out} is part of the input dataset {inp}; "
                                       "choose a path outside it")
-            if replaces_folder and _inside(inp, out):
-                raise OutputError(f"output folder {out} holds the input {inp}; choose another --out")
+            if _inside(inp, out):
+                raise OutputError(f"output folder {out} holds the input {inp}, which the command could "
+                                  "overwrite; choose another output or move the input out of it")
 
 
 def check_file_target(path: str | os.PathLike) -> None:
@@ -154,9 +170,15 @@ def _makedirs(folder: str) -> list[str]:
     while folder and not os.path.exists(folder):
         made.append(folder)
         folder = os.path.dirname(folder)
-    for d in reversed(made):
-        with contextlib.suppress(FileExistsError):
-            os.mkdir(d)
+    done = []
+    try:
+        for d in reversed(made):
+            with contextlib.suppress(FileExistsError):
+                os.mkdir(d)
+                done.append(d)
+    except BaseException:
+        _remove_empty(done)   # a folder could not be made (full disk...): none is left
+        raise
     return list(reversed(made))
 
 
@@ -166,48 +188,225 @@ def _remove_empty(folders: list[str]) -> None:
             os.rmdir(d)
 
 
-def _rename_error(exc: OSError, tmp: str, path: str) -> OutputError:
-    return OutputError(f"cannot write {path}: {exc.strerror or exc}")
+# --- naming an output, and the file system refusing bytes -------------------------------
+
+_OUTPUT_OPTIONS: dict[str, tuple[str, str]] = {}   # real path -> (option, path as given)
+_OUTPUT_ENV = "RELIGHT_OUTPUT_OPTIONS"
+
+
+def name_outputs(options: dict) -> None:
+    """Record which command-line option gave each output path (``{"--out": path}``), so
+    that an error while writing one names the option the user typed, never an internal
+    temporary (the command line calls this once with its parsed arguments)."""
+    import json
+    _OUTPUT_OPTIONS.clear()
+    for option, given in options.items():
+        if isinstance(given, (str, os.PathLike)) and os.fspath(given):
+            _OUTPUT_OPTIONS[_real(given)] = (option, os.fspath(given))
+    os.environ[_OUTPUT_ENV] = json.dumps(_OUTPUT_OPTIONS)   # worker processes name them alike
+
+
+def _output_options() -> dict[str, tuple[str, str]]:
+    if not _OUTPUT_OPTIONS and os.environ.get(_OUTPUT_ENV):
+        import json
+        try:
+            _OUTPUT_OPTIONS.update({k: tuple(v) for k, v in json.loads(os.environ[_OUTPUT_ENV]).items()})
+        except (ValueError, TypeError, AttributeError):
+            pass
+    return _OUTPUT_OPTIONS
+
+
+def describe_output(path) -> str:
+    """``path`` as the user knows it: ``--out DIR (images/000003.png)`` when it is (in) the
+    output an option named, else the path itself. A temporary name means its target."""
+    path = os.fspath(path)
+    folder, name = os.path.split(path)
+    m = _TEMP_RE.search(name)
+    if m and m.group(1) is not None and name.startswith("."):
+        name = name[1:m.start()] + name[m.end():]   # .NAME.relight-tmp-PID-TOKEN.EXT -> NAME.EXT
+        path = os.path.join(folder, name)
+    parts = []   # temporary folders (atomic_folder) along the way name their targets too
+    for piece in _real(path).split(os.sep):
+        m = _TEMP_RE.search(piece)
+        if m and m.group(1) is not None and piece.startswith("."):
+            piece = piece[1:m.start()] + piece[m.end():]
+        parts.append(piece)
+    real = os.sep.join(parts) or os.sep
+    best = None
+    for out_real, (option, given) in _output_options().items():
+        if real == out_real or _inside(real, out_real):
+            if best is None or len(out_real) > len(best[0]):
+                best = (out_real, option, given)
+    if best is None:
+        return path
+    out_real, option, given = best
+    return f"{option} {given}" + ("" if real == out_real else f" ({os.path.relpath(real, out_real)})")
+
+
+DISK_ERRNOS = {errno.ENOSPC: "no space left on the device", errno.EDQUOT: "disk quota exceeded",
+               errno.EROFS: "read-only file system", errno.EFBIG: "file too large for the file system"}
+# What libraries that drop the errno say instead (safetensors, OpenEXR, numpy).
+_DISK_WORDS = (("no space left", errno.ENOSPC), ("storagefull", errno.ENOSPC),
+               ("disk quota", errno.EDQUOT), ("quotaexceeded", errno.EDQUOT),
+               ("read-only file system", errno.EROFS), ("readonlyfilesystem", errno.EROFS))
+FULL_MARGIN = 1 << 20   # a write failing with less free than this is taken as a full disk
+
+
+def _free_space(path: str) -> tuple[int | None, bool]:
+    """(bytes free to this user, read-only) of the file system holding ``path`` (or its
+    nearest existing parent); (None, False) when unknown."""
+    probe = os.path.abspath(path)
+    while probe and not os.path.exists(probe):
+        parent = os.path.dirname(probe)
+        if parent == probe:
+            break
+        probe = parent
+    try:
+        st = os.statvfs(probe)
+    except OSError:
+        return None, False
+    return st.f_bavail * st.f_frsize, bool(st.f_flag & os.ST_RDONLY)
+
+
+def human_size(n: float) -> str:
+    """Bytes for a person: ``512 B``, ``28.0 KB``, ``1.2 MB``."""
+    for unit in ("B", "KB", "MB", "GB", "TB"):
+        if n < 1024 or unit == "TB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1024
+    return f"{n} B"
+
+
+def _disk_errno(exc: BaseException, path: str) -> int | None:
+    """The errno when ``exc`` means the file system refused the bytes (full, over quota,
+    read-only), looking through chained exceptions and the words of libraries that drop
+    the errno; a library that says only that writing failed (torch) is believed when
+    the file system is in fact full or read-only."""
+    seen, e = set(), exc
+    while e is not None and id(e) not in seen:
+        seen.add(id(e))
+        if isinstance(e, OSError) and e.errno in DISK_ERRNOS:
+            return e.errno
+        text = str(e).lower().replace(" ", "") if not isinstance(e, OSError) or e.errno is None else ""
+        for words, code in _DISK_WORDS:
+            if words.replace(" ", "") in text:
+                return code
+        e = e.__cause__ or e.__context__
+    # I/O errors of the writing libraries (torch, OpenEXR, Pillow, safetensors), not
+    # programming errors (ValueError, TypeError...), which stay bugs whatever the disk
+    if isinstance(exc, OSError) and exc.errno is not None:
+        return None   # the OS said what it was (no permission, no such file...)
+    if isinstance(exc, (OSError, RuntimeError)) or "Safetensor" in type(exc).__name__:
+        free, read_only = _free_space(path)
+        if read_only:
+            return errno.EROFS
+        if free is not None and free < FULL_MARGIN:
+            return errno.ENOSPC
+    return None
+
+
+def disk_error(exc: BaseException, path, size: int | None = None, partial: int | None = None
+               ) -> DiskFullError | None:
+    """The one-line :class:`~relight.errors.DiskFullError` (an :class:`OutputError`) for a write of ``path`` that the file system
+    refused (``ENOSPC``, ``EDQUOT``, ``EROFS``, ``EFBIG``), naming the output and the
+    free space: ``size``, the bytes the file needs, where known, else ``partial``, the
+    bytes it had reached when the disk filled (it needs more); None otherwise."""
+    path = os.fspath(path)
+    code = _disk_errno(exc, path)
+    if code is None:
+        return None
+    what = DISK_ERRNOS[code]
+    if code in (errno.ENOSPC, errno.EDQUOT):
+        free, _ = _free_space(path)
+        need = (f"; it needs {human_size(size)}" if size else
+                f"; it needs more than the {human_size(partial)} written" if partial else "")
+        room = f" ({human_size(free)} free{need})" if free is not None else ""
+        hint = "; free some space (or choose another --out) and re-run the same command"
+    else:
+        room, hint = "", "; choose another --out"
+    return DiskFullError(f"cannot write {describe_output(path)}: {what}{room}{hint}")
+
+
+def write_error(exc: BaseException, path, tmp: str | None = None, size: int | None = None,
+                partial: int | None = None) -> OutputError | None:
+    """The one-line error for a failed write of ``path`` (through ``tmp``): the file
+    system refused the bytes (:func:`disk_error`), or an OS error on the file itself
+    (no permission, ...), named as the user knows it; None for anything else (a bug)."""
+    full = disk_error(exc, path, size, partial)
+    if full is not None:
+        return full
+    if isinstance(exc, OSError):
+        names = {os.fspath(n) for n in (exc.filename, getattr(exc, "filename2", None)) if n is not None}
+        ours = {os.fspath(path)} | ({tmp} if tmp else set())
+        # the file, its temporary (or a file in a temporary folder), or a folder on its way
+        if names & ours or any((tmp and _inside(n, tmp)) or _inside(path, n) for n in names):
+            return OutputError(f"cannot write {describe_output(path)}: {exc.strerror or exc}")
+    return None
 
 
 # --- writing ---------------------------------------------------------------------------
 
-def atomic_write(path: str | os.PathLike, writer, inputs=()) -> None:
+def _size(path: str) -> int | None:
+    try:
+        if os.path.isdir(path):
+            return sum(os.path.getsize(os.path.join(d, f)) for d, _, fs in os.walk(path) for f in fs)
+        return os.path.getsize(path)
+    except OSError:
+        return None
+
+
+@contextlib.contextmanager
+def _writing(path: str, tmp: str | None = None, made=(), size: int | None = None):
+    """Around a write of ``path`` (through ``tmp``): on any failure the temporary and the
+    folders made for it are removed, and a refusal of the file system (full disk, quota,
+    read-only) or an OS error on the file becomes one :class:`OutputError` naming the
+    output as the user gave it (:func:`write_error`); anything else is raised as is."""
+    try:
+        yield
+    except BaseException as exc:
+        err = None
+        if not isinstance(exc, (RelightError, KeyboardInterrupt, SystemExit, GeneratorExit)):
+            # classified before the temporary is removed: the disk is still full now
+            err = write_error(exc, path, tmp, size, None if size or not tmp else _size(tmp))
+        if tmp:
+            _discard(tmp)
+        _remove_empty(list(made))
+        if err is not None:
+            raise err from None
+        raise
+
+
+def atomic_write(path: str | os.PathLike, writer, inputs=(), size: int | None = None) -> None:
     """Write ``path`` atomically: ``writer(tmp_path)`` writes a temporary file beside it,
     which then replaces ``path``. Refuses (:class:`OutputError`) an output that is one of
     ``inputs`` or a folder; on any failure the temporary file is removed and ``path``
-    (and the folders) are as before."""
+    (and the folders) are as before. A full disk, a quota or a read-only file system is
+    one :class:`OutputError` naming the output and the free space (``size``: the bytes
+    the file needs, where the caller knows them)."""
     path = os.fspath(path)
     check_outputs([path], inputs)
     check_file_target(path)
-    made = _makedirs(os.path.dirname(os.path.abspath(path)))
+    with _writing(path, size=size):
+        made = _makedirs(os.path.dirname(os.path.abspath(path)))
     tmp = temp_path(path)
-    try:
+    with _writing(path, tmp, made, size):
         writer(tmp)
         os.replace(tmp, path)
-    except OSError as exc:
-        _discard(tmp)
-        _remove_empty(made)
-        if exc.filename in (tmp, path) or getattr(exc, "filename2", None) in (tmp, path):
-            raise _rename_error(exc, tmp, path) from None
-        raise
-    except BaseException:
-        _discard(tmp)
-        _remove_empty(made)
-        raise
 
 
 def atomic_folder(path: str | os.PathLike, writer) -> None:
     """Write the folder ``path`` atomically: ``writer(tmp_dir)`` fills a temporary folder
     beside it, which then takes the place of ``path`` (an older folder there is swapped
     out, then deleted). On any failure the temporary folder is removed and ``path`` is
-    as before. The caller checks first that ``path`` may be replaced."""
+    as before (a full disk: one :class:`OutputError`, as :func:`atomic_write`). The
+    caller checks first that ``path`` may be replaced."""
     path = os.path.abspath(os.fspath(path))
     parent = os.path.dirname(path)
-    made = _makedirs(parent)
+    with _writing(path):
+        made = _makedirs(parent)
     tmp = temp_path(path)
-    os.mkdir(tmp)
-    try:
+    with _writing(path, tmp, made):
+        os.mkdir(tmp)
         writer(tmp)
         if os.path.lexists(path):
             old = temp_path(path)
@@ -216,10 +415,24 @@ def atomic_folder(path: str | os.PathLike, writer) -> None:
             _discard(old)
         else:
             os.replace(tmp, path)
-    except BaseException:
-        _discard(tmp)
-        _remove_empty(made)
-        raise
+
+
+def append_line(f, line: bytes, path) -> None:
+    """Append one whole ``line`` to the open binary file ``f`` (a manifest) and sync it.
+    On failure (a full disk...) the file is cut back to its length before, so no record
+    is ever half-written, and the error is one :class:`OutputError` (as :func:`atomic_write`)."""
+    start = f.tell()
+    with _writing(os.fspath(path), size=len(line)):
+        try:
+            f.write(line)
+            f.flush()
+            os.fsync(f.fileno())
+        except BaseException:
+            with contextlib.suppress(OSError, ValueError):
+                f.seek(start)
+                f.truncate(start)
+                f.flush()
+            raise
 
 
 def _discard(tmp: str) -> None:
@@ -235,7 +448,7 @@ def write_text(path, text: str, inputs=()) -> None:
     def w(tmp):
         with open(tmp, "w", encoding="utf-8", newline="") as f:
             f.write(text)
-    atomic_write(path, w, inputs)
+    atomic_write(path, w, inputs, size=len(text.encode("utf-8", "surrogatepass")))
 
 
 def write_bytes(path, data: bytes, inputs=()) -> None:
@@ -243,7 +456,7 @@ def write_bytes(path, data: bytes, inputs=()) -> None:
     def w(tmp):
         with open(tmp, "wb") as f:
             f.write(data)
-    atomic_write(path, w, inputs)
+    atomic_write(path, w, inputs, size=len(data))
 
 
 def write_json(path, data, inputs=(), **kw) -> None:
@@ -283,15 +496,12 @@ class Transaction:
     def stage(self, path, writer) -> None:
         path = os.fspath(path)
         self.check(path)
-        self.makedirs(os.path.dirname(os.path.abspath(path)))
+        with _writing(path):
+            self.makedirs(os.path.dirname(os.path.abspath(path)))
         tmp = temp_path(path)
         self.staged.append((tmp, path))
-        try:
+        with _writing(path, tmp):   # the rollback removes the rest
             writer(tmp)
-        except OSError as exc:
-            if exc.filename == tmp:
-                raise _rename_error(exc, tmp, path) from None
-            raise
 
     def stage_text(self, path, text: str) -> None:
         def w(tmp):
@@ -309,7 +519,8 @@ class Transaction:
                     os.replace(path, backup)
                 done.append((backup, path))
                 os.replace(tmp, path)
-        except BaseException:
+        except BaseException as exc:
+            err = None if isinstance(exc, RelightError) else write_error(exc, path, tmp)
             for backup, path in reversed(done):
                 with contextlib.suppress(OSError):
                     if backup:
@@ -317,6 +528,8 @@ class Transaction:
                     else:
                         os.remove(path)
             self.rollback()
+            if err is not None:
+                raise err from None
             raise
         for backup, _ in done:
             if backup:
@@ -358,17 +571,28 @@ class FolderLock:
         if os.path.lexists(folder) and not os.path.isdir(folder):
             raise OutputError(f"{folder} exists and is not a folder")
         existed = os.path.isdir(folder)
-        os.makedirs(folder, exist_ok=True)
+        with _writing(folder):
+            made = _makedirs(folder)
+        lock = cls(folder, what)
+        lock.made = made
         try:
-            return cls(folder, what).acquire(), existed
+            with _writing(os.path.join(folder, LOCK_NAME)):
+                return lock.acquire(), existed
         except BaseException:
-            if not existed:
-                shutil.rmtree(folder, ignore_errors=True)
+            lock.remove_made()
             raise
+
+    def remove_made(self) -> None:
+        """Remove the folder (with its contents) and the empty parents :meth:`take` made
+        (nothing when the folder existed before)."""
+        if self.made:
+            shutil.rmtree(self.made[-1], ignore_errors=True)
+            _remove_empty(self.made[:-1])
 
     def __init__(self, folder: str | os.PathLike, what: str = "folder"):
         self.folder = os.fspath(folder)
         self.what = what
+        self.made: list[str] = []   # folders take() created, outermost first
         self.fd: int | None = None
 
     def acquire(self) -> "FolderLock":

@@ -19,7 +19,7 @@ import numpy as np
 
 from relight import colour
 from relight.fileio import atomic_write, quiet_library_output
-from relight.errors import ImageError
+from relight.errors import ImageError, brief
 
 
 def write_exr(path: str | os.PathLike, image: np.ndarray, inputs=()) -> None:
@@ -51,7 +51,7 @@ def _read_exr(path: str) -> tuple[np.ndarray, str]:
         with quiet_library_output(), OpenEXR.File(path) as f:   # OpenEXR prints its own warnings
             channels = {k: np.asarray(v.pixels) for k, v in f.channels().items()}
     except Exception as exc:  # noqa: BLE001 - OpenEXR raises plain exceptions
-        raise ImageError(f"cannot read EXR {path}: {str(exc).splitlines()[0][:160]}") from None
+        raise ImageError(f"cannot read EXR {path}: {brief(exc, 160)}") from None
     if "RGB" in channels or "RGBA" in channels:
         key = "RGB" if "RGB" in channels else "RGBA"
         img, how = channels[key][..., :3], key
@@ -153,8 +153,7 @@ def load_image(path: str | os.PathLike) -> tuple[np.ndarray, str, str]:
         raise ImageError(f"{path}: image too large (decompression bomb?)") from None
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError, TypeError,
             MemoryError, EOFError) as exc:
-        text = str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__
-        raise ImageError(f"cannot read image {path}: {text}") from None
+        raise ImageError(f"cannot read image {path}: {brief(exc)}") from None
     if fmt == "PNG":
         depth = _png_depth(path) or depth
         if depth == 16 and mode in ("RGB", "RGBA"):   # Pillow keeps 8 of the 16 bits

@@ -56,3 +56,58 @@ def untrained_model(path, res: int = 32) -> str:
     torch.manual_seed(0)
     save_model(str(path), LightNet(NetConfig(res=res, width=8)), {"note": "untrained"})
     return str(path)
+
+
+# --- portable float comparisons -----------------------------------------------------------
+# Floats computed on this machine are never compared exactly with floats written on another
+# (a committed file, a published table): another CPU's vector width or libm may change the
+# last bits (docs/conventions.md, "Tests"). "The same random stream" means the same draws to
+# DRAWS_ATOL; everything that is not a float (ints, names, structure) must match exactly.
+DRAWS_ATOL = 1e-12
+
+
+def same_draws_mismatch(a, b, atol: float = DRAWS_ATOL, rtol: float = DRAWS_ATOL, where: str = ""):
+    """The first place where two nested structures (dataclasses, dicts, lists, tuples,
+    numbers, strings) differ, or None: floats may differ by ``atol + rtol * |b|``, all
+    else must be equal (an int is not a float: a count or a seed must match exactly)."""
+    import dataclasses
+    import math
+    if dataclasses.is_dataclass(a) and not isinstance(a, type):
+        if type(a) is not type(b):
+            return f"{where or 'value'}: {type(a).__name__} vs {type(b).__name__}"
+        a, b = dataclasses.asdict(a), dataclasses.asdict(b)
+    if isinstance(a, dict) or isinstance(b, dict):
+        if not (isinstance(a, dict) and isinstance(b, dict)) or set(a) != set(b):
+            return f"{where or 'value'}: keys {sorted(a) if isinstance(a, dict) else a!r} vs " \
+                   f"{sorted(b) if isinstance(b, dict) else b!r}"
+        for k in a:
+            m = same_draws_mismatch(a[k], b[k], atol, rtol, f"{where}.{k}" if where else str(k))
+            if m:
+                return m
+        return None
+    if isinstance(a, (list, tuple)) or isinstance(b, (list, tuple)):
+        if not (isinstance(a, (list, tuple)) and isinstance(b, (list, tuple))) or len(a) != len(b):
+            return f"{where or 'value'}: {a!r} vs {b!r}"
+        for i, (x, y) in enumerate(zip(a, b)):
+            m = same_draws_mismatch(x, y, atol, rtol, f"{where}[{i}]")
+            if m:
+                return m
+        return None
+    if isinstance(a, float) or isinstance(b, float):
+        if isinstance(a, bool) or isinstance(b, bool) or not isinstance(a, (int, float)) \
+                or not isinstance(b, (int, float)):
+            return f"{where or 'value'}: {a!r} vs {b!r}"
+        if math.isnan(a) and math.isnan(b):
+            return None
+        if not abs(a - b) <= atol + rtol * abs(b):
+            return f"{where or 'value'}: {a!r} vs {b!r} (differ by {abs(a - b):.3g})"
+        return None
+    if type(a) is not type(b) or a != b:
+        return f"{where or 'value'}: {a!r} vs {b!r}"
+    return None
+
+
+def assert_same_draws(a, b, atol: float = DRAWS_ATOL, rtol: float = DRAWS_ATOL) -> None:
+    """Assert :func:`same_draws_mismatch` finds no difference (the message names it)."""
+    mismatch = same_draws_mismatch(a, b, atol, rtol)
+    assert mismatch is None, mismatch

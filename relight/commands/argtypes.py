@@ -124,7 +124,7 @@ seed = int_in(0, SEED_LIMIT - 1, "a seed")
 threads = int_in(1, 1024, "a thread count")
 workers = int_in(1, 256, "a process count")
 loader_workers = int_in(0, 256, "a worker count")
-count = int_in(0, MAX_COUNT, "an image count")
+count = int_in(1, MAX_COUNT, "an image count")   # 0 would make an empty dataset: refused
 limit = int_in(1, 10_000_000, "a count")
 columns = int_in(1, 64, "a column count")
 epochs = int_in(1, 100_000, "an epoch count")
@@ -193,3 +193,67 @@ def loss_weights(text: str):
         raise argparse.ArgumentTypeError(
             f"expected three finite numbers in [0, 1e6], not all zero, like 1,1,1, got {text!r}")
     return LossWeights(pan=values[0], tilt=values[1], colour=values[2])
+
+
+# The largest image side relight reads (relight.imageio.MAX_IMAGE_PIXELS is 8192^2): no
+# circle of a readable image has a centre or radius beyond it.
+MAX_CIRCLE_PX = 65536
+
+
+def circle(text: str) -> tuple[float, float, float]:
+    """``CX,CY,R`` in pixels: three finite numbers, 0 < R and |CX|, |CY|, R at most
+    :data:`MAX_CIRCLE_PX` (the image itself: :func:`relight.commands.probe.check_circle_fits`)."""
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 3 or not all(math.isfinite(v) for v in values) or values[2] <= 0 \
+            or max(abs(v) for v in values) > MAX_CIRCLE_PX:
+        raise argparse.ArgumentTypeError(f"expected CX,CY,R (pixels, 0 < R, each at most {MAX_CIRCLE_PX}), "
+                                         f"got {text!r}")
+    return values
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser with the command line's manners, for scripts and benchmarks: a bad
+    argument is one line ``PROG: error: ...`` on stderr and exit 2 (no usage block), and
+    ``--check-args`` checks a command's arguments (types and ranges) without running it."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.add_argument("--check-args", action="store_true",
+                          help="check the arguments (types and ranges), say so and exit without running")
+
+    def parse_args(self, args=None, namespace=None):
+        import sys
+        ns = super().parse_args(args, namespace)
+        if ns.check_args:
+            print(f"{self.prog}: arguments ok")
+            sys.exit(0)
+        return ns
+
+    def error(self, message):
+        import sys
+        sys.stderr.write(f"{self.prog}: error: {message}\n")
+        sys.exit(2)
+
+
+def run_script(main, prog: str | None = None) -> int:
+    """Run a script's ``main()`` as the command line runs a verb: an error a user can fix
+    (:class:`relight.errors.RelightError`, a missing or unreadable file) is one line on
+    stderr and exit code 2, never a traceback."""
+    import os
+    import sys
+    from relight.cli import user_errors
+    prog = prog or os.path.basename(sys.argv[0])
+    try:
+        return int(main() or 0)
+    except KeyboardInterrupt:
+        sys.stderr.write(f"{prog}: interrupted (re-run the same command to resume)\n")
+        return 130
+    except user_errors() as exc:
+        text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        if isinstance(exc, OSError) and exc.filename:
+            text = f"{exc.strerror}: {exc.filename}"
+        sys.stderr.write(f"{prog}: error: {text}\n")
+        return 2

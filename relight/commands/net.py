@@ -48,7 +48,8 @@ def add_commands(sub) -> None:
                         "re-running the identical command resumes without it")
     t.add_argument("--init", default=None, metavar="MODEL",
                    help="fine-tune this model file (e.g. relight/models/sid2.safetensors): its network "
-                        "and weights are the starting point (--arch/--width ignored, --res must match)")
+                        "and weights are the starting point (--arch/--width ignored, --res must match); "
+                        "it may not lie in --out, whose best.safetensors the run replaces (copy it out first)")
     t.add_argument("--images", choices=["visible", "masked"], default="visible",
                    help="MID-like datasets: train on the images as rendered (visible spheres) or on the "
                         "copies with both spheres painted out (default visible)")

@@ -7,7 +7,7 @@ __all__ = [
 
 import os
 
-from relight.commands.argtypes import camera_tilt, field_of_view, positive_float
+from relight.commands.argtypes import camera_tilt, circle, field_of_view, positive_float
 
 
 def add_commands(sub) -> None:
@@ -41,17 +41,26 @@ def add_commands(sub) -> None:
     p.set_defaults(func=cmd_probe)
 
 
-def circle(text: str) -> tuple[float, float, float]:
-    """``CX,CY,R`` in pixels: three finite numbers, R > 0."""
-    import argparse
+def check_circle_fits(option: str, circle, image: str) -> None:
+    """Refuse (one line) a circle that cannot be a sphere's outline in ``image``: a radius
+    over half the image diagonal (a circle that large shows no outline), or a circle that
+    misses the image; checked before the probe allocates anything of the circle's size."""
     import math
-    try:
-        values = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        values = ()
-    if len(values) != 3 or not all(math.isfinite(v) for v in values) or values[2] <= 0:
-        raise argparse.ArgumentTypeError(f"expected CX,CY,R (pixels, R > 0), got {text!r}")
-    return values
+
+    from relight.errors import ProbeError
+    from relight.imageio import load_image
+    if circle is None or image is None:
+        return
+    height, width = load_image(image)[0].shape[:2]
+    cx, cy, r = circle
+    half_diagonal = math.hypot(width, height) / 2
+    if r > half_diagonal:
+        raise ProbeError(f"{option} {cx:g},{cy:g},{r:g}: radius larger than half the diagonal of {image} "
+                         f"({width}x{height} px: at most {half_diagonal:.1f})")
+    dx = max(0.0, -cx, cx - width)
+    dy = max(0.0, -cy, cy - height)
+    if math.hypot(dx, dy) >= r:
+        raise ProbeError(f"{option} {cx:g},{cy:g},{r:g}: the circle misses {image} ({width}x{height} px)")
 
 
 def cmd_probe(args) -> int:
@@ -59,10 +68,12 @@ def cmd_probe(args) -> int:
     from relight.predictions import write_predictions
     from relight.probe.run import ProbeConfig, run_probe, write_qa
     inputs = [args.chrome, args.chrome_mask, args.diffuse, args.diffuse_mask]
-    check_outputs([args.out, args.qa], inputs)
-    check_file_target(args.out)
+    check_file_target(args.out)   # a folder given for a file: said as such, before the input rule
     if args.qa:
         check_file_target(args.qa)
+    check_outputs([args.out, args.qa], inputs)
+    check_circle_fits("--chrome-circle", args.chrome_circle, args.chrome)
+    check_circle_fits("--diffuse-circle", args.diffuse_circle, args.diffuse)
     cfg = ProbeConfig(chrome=args.chrome, chrome_circle=args.chrome_circle, chrome_mask=args.chrome_mask,
                       diffuse=args.diffuse, diffuse_circle=args.diffuse_circle, diffuse_mask=args.diffuse_mask,
                       fov_deg=args.fov, focal_px=args.focal_px, camera_tilt_deg=args.camera_tilt,

@@ -32,7 +32,6 @@ __all__ = [
 import contextlib
 import json
 import os
-import shutil
 import time
 from dataclasses import dataclass
 
@@ -40,10 +39,10 @@ import numpy as np
 
 from relight.dataset.format import (CARD, DATASET_FORMAT, MANIFEST, MAX_COUNT, SEED_LIMIT, check_same_settings,
                                     read_card, read_manifest, record_for)
-from relight.fileio import LOCK_NAME, FolderLock, remove_temps, write_bytes, write_json
+from relight.fileio import LOCK_NAME, FolderLock, append_line, remove_temps, write_bytes, write_json
 from relight.generator.sampling import LEGACY_CONFIG, GeneratorConfig, sample_scene, split_of
 from relight.scene.spec import SceneSpec
-from relight.errors import DatasetError
+from relight.errors import DatasetError, DiskFullError, RelightError
 
 
 @dataclass
@@ -101,9 +100,17 @@ def _write(out: str, spec: SceneSpec, image: np.ndarray, split: str) -> dict:
     the record to append once all three are in place."""
     from relight.imageio import write_exr, write_png
     from relight.fileio import write_text
-    write_text(os.path.join(out, "scenes", f"{spec.id}.json"), spec.to_json())
-    write_exr(os.path.join(out, "exr", f"{spec.id}.exr"), image)
-    write_png(os.path.join(out, "images", f"{spec.id}.png"), image)
+    paths = [os.path.join(out, sub, f"{spec.id}{ext}") for sub, ext in
+             (("scenes", ".json"), ("exr", ".exr"), ("images", ".png"))]
+    try:
+        write_text(paths[0], spec.to_json())
+        write_exr(paths[1], image)
+        write_png(paths[2], image)
+    except BaseException:   # no record will name them: leave no file of this image behind
+        for path in paths:
+            with contextlib.suppress(OSError):
+                os.remove(path)
+        raise
     return record_for(spec, split)
 
 
@@ -198,11 +205,14 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
     old_card = open(card_path, "rb").read() if os.path.isfile(card_path) else None
     stats = GenerateStats()
     try:
-        return _generate_locked(out, count, seed, cfg, workers, progress, threads, stats, scheduler)
+        try:
+            return _generate_locked(out, count, seed, cfg, workers, progress, threads, stats, scheduler)
+        except DiskFullError as exc:
+            raise DiskFullError(f"{exc}{_room_needed(out, count)}") from None
     except BaseException:
         if stats.written == 0:   # nothing made: leave the folder as it was
             if not existed:
-                shutil.rmtree(out, ignore_errors=True)
+                lock.remove_made()   # the folder and any parents made for it
             elif old_card is not None:
                 write_bytes(card_path, old_card)
             elif os.path.isfile(card_path) and not _has_records(out):
@@ -218,6 +228,22 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
         raise
     finally:
         lock.release()
+
+
+def _room_needed(out: str, count: int) -> str:
+    """`` (the N images left need about X)`` from the finished images' files, or ''."""
+    from relight.fileio import human_size, is_temp_name
+    try:
+        done = {r["id"] for r in read_manifest(out)} if _has_records(out) else set()
+        size = sum(os.path.getsize(os.path.join(out, sub, n)) for sub in ("images", "exr", "scenes")
+                   for n in os.listdir(os.path.join(out, sub))
+                   if not is_temp_name(n) and os.path.splitext(n)[0] in done)
+    except (OSError, RelightError):
+        return ""
+    left = count - len(done)
+    if not done or left <= 0:
+        return ""
+    return f" (the {left} images left need about {human_size(size / len(done) * left)})"
 
 
 def _check_meshes(cfg: GeneratorConfig) -> None:
@@ -266,9 +292,7 @@ def _generate_locked(out: str, count: int, seed: int, cfg: GeneratorConfig, work
     t_start = time.perf_counter()
     with open(manifest_path, "ab") as manifest:
         def append(record, render_s):
-            manifest.write((json.dumps(record) + "\n").encode())
-            manifest.flush()
-            os.fsync(manifest.fileno())
+            append_line(manifest, (json.dumps(record) + "\n").encode(), manifest_path)
             stats.written += 1
             stats.render_s += render_s
             bar.update(1)

@@ -36,8 +36,8 @@ import numpy as np
 
 from relight import colour
 from relight.scene import albedo, noise, shapes, textures
-from relight.scene.spec import (LEGACY_SAMPLER, SAMPLERS, CameraSpec, LightSpec, ObjectSpec, RenderSpec, RoomSpec,
-                                SceneSpec)
+from relight.scene.spec import (LEGACY_SAMPLER, MAX_DEPTH, MAX_RES, MAX_SPP, SAMPLERS, CameraSpec, LightSpec,
+                                ObjectSpec, RenderSpec, RoomSpec, SceneSpec)
 from relight.errors import ConfigError
 
 
@@ -97,9 +97,11 @@ class GeneratorConfig:
             lo, hi = getattr(self, name)
             if not (lo_min <= lo <= hi <= hi_max):
                 raise ConfigError(f"{name}: expected {lo_min} <= lo <= hi <= {hi_max}, got {(lo, hi)}")
+        limits = {"res": MAX_RES, "max_depth": MAX_DEPTH, "texture_res": MAX_RES, "spp": MAX_SPP}
         for name in ("res", "max_depth", "texture_res") + (("spp",) if self.spp is not None else ()):
-            if not isinstance(getattr(self, name), int) or getattr(self, name) < 1:
-                raise ConfigError(f"{name}: expected a positive integer, got {getattr(self, name)!r}")
+            v = getattr(self, name)
+            if not isinstance(v, int) or isinstance(v, bool) or not 1 <= v <= limits[name]:
+                raise ConfigError(f"{name}: expected an integer in [1, {limits[name]}], got {v!r}")
         if self.sampler not in SAMPLERS:
             raise ConfigError(f"sampler: expected one of {', '.join(SAMPLERS)}, got {self.sampler!r}")
         if self.colour_prior not in albedo.PRIORS:

@@ -21,7 +21,7 @@ import os
 import torch
 
 from relight.net.model import ARCHES, LightNet, NetConfig
-from relight.errors import ModelFileError
+from relight.errors import ModelFileError, brief
 
 MODEL_FORMAT = "relight.model/v1"
 MODELS_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "models")
@@ -71,8 +71,7 @@ def _read(path: str | os.PathLike, tensors: bool) -> tuple[NetConfig, dict, dict
             meta = f.metadata() or {}
             state = {k: f.get_tensor(k) for k in f.keys()} if tensors else {}
     except (SafetensorError, OSError, ValueError, RuntimeError) as exc:
-        text = str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__
-        raise ModelFileError(f"{path}: not a readable safetensors model ({text})") from None
+        raise ModelFileError(f"{path}: not a readable safetensors model ({brief(exc)})") from None
     if meta.get("format") != MODEL_FORMAT:
         raise ModelFileError(f"{path}: expected a {MODEL_FORMAT!r} model, got format {meta.get('format')!r}")
     arch = {name: key for key, name in ARCHES.items()}.get(meta.get("arch"))
@@ -83,7 +82,7 @@ def _read(path: str | os.PathLike, tensors: bool) -> tuple[NetConfig, dict, dict
         config = NetConfig.from_dict(json.loads(meta.get("config", "")) | {"arch": arch})
         info = json.loads(meta.get("info", "{}"))
     except (json.JSONDecodeError, TypeError, ValueError) as exc:
-        raise ModelFileError(f"{path}: bad model metadata ({str(exc).splitlines()[0][:120]})") from None
+        raise ModelFileError(f"{path}: bad model metadata ({brief(exc)})") from None
     return config, state, info
 
 

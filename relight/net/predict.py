@@ -190,7 +190,9 @@ def _read_input(path: str, res: int) -> tuple[torch.Tensor, str, bool]:
 
 
 def list_images(paths: list[str]) -> list[str]:
-    """Files named, plus the images (PNG/JPEG/EXR) directly inside named folders, sorted."""
+    """Files named, plus the images (PNG/JPEG/EXR) directly inside named folders, sorted;
+    :class:`ImageError` when one image is named twice (directly, through its folder or a
+    link), which would give two predictions of one picture."""
     from relight.fileio import is_temp_name
     from relight.imageio import ImageError
     out = []
@@ -205,6 +207,15 @@ def list_images(paths: list[str]) -> list[str]:
             out.append(p)
         else:
             raise ImageError(f"image not found: {p}")
+    seen = {}
+    for f in out:   # one image given twice (a file and its folder, a link...) is refused
+        st = os.stat(f)
+        key = (st.st_dev, st.st_ino)
+        if key in seen:
+            also = "" if f == seen[key] else f" (also as {seen[key]})"
+            raise ImageError(f"image {f} is given twice{also}; give each image once (a file and "
+                             "its folder, or a link to it, name it twice)")
+        seen[key] = f
     return out
 
 

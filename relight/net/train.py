@@ -43,7 +43,7 @@ import numpy as np
 import torch
 
 from relight.dataset import DatasetError
-from relight.errors import TrainingError
+from relight.errors import TrainingError, brief
 from relight.fileio import FolderLock, atomic_write, write_json
 from relight.net.data import LightDataset, dataset_folders, folders_record
 from relight.net.evaluate import errors_from_y, run_model
@@ -220,8 +220,7 @@ def _load_checkpoint(path: str) -> dict:
     try:
         state = torch.load(path, weights_only=True)
     except Exception as exc:  # noqa: BLE001 - torch raises many types for bad files
-        text = str(exc).splitlines()[0][:100] if str(exc) else type(exc).__name__
-        raise TrainingError(f"{path}: cannot read checkpoint ({text}); delete it to start over") from None
+        raise TrainingError(f"{path}: cannot read checkpoint ({brief(exc)}); delete it to start over") from None
     keys = ("model", "optimiser", "scheduler", "epoch", "history", "best_val_loss", "settings", "torch_rng")
     if not isinstance(state, dict) or any(k not in state for k in keys) \
             or not isinstance(state["settings"], dict) or not isinstance(state["history"], list):
@@ -319,8 +318,7 @@ def _train_rank0(cfg: TrainConfig, out_dir: str, resume: bool, progress: bool, d
         return _train_locked(cfg, out_dir, resume, progress, ddp=ddp)
     except BaseException:
         if not existed and not os.path.exists(os.path.join(out_dir, CHECKPOINT)):
-            import shutil
-            shutil.rmtree(out_dir, ignore_errors=True)   # nothing was trained: leave no folder
+            lock.remove_made()   # nothing was trained: leave no folder (nor parents made for it)
         raise
     finally:
         lock.release()
@@ -414,7 +412,7 @@ def _restore(cfg: TrainConfig, out_dir: str, resume: bool, ddp, writer: bool) ->
             torch.set_rng_state(state["torch_rng"])
         except (RuntimeError, ValueError, TypeError, KeyError, AttributeError) as exc:
             raise TrainingError(f"{ckpt_path}: checkpoint does not match this network "
-                                f"({str(exc).splitlines()[0][:100]}); delete it to start over") from None
+                                f"({brief(exc)}); delete it to start over") from None
     settings = cfg.to_dict() | {"out_dir": out_dir, "parameters": count_parameters(model)}
     if init_model is not None:   # the starting point: the loaded model's val loss before any step
         if state is None:

@@ -36,6 +36,7 @@ from relight import backend, frames, render
 from relight.scene import bsdf as rough_bsdf
 from relight.scene import shapes, textures
 from relight.scene.spec import ObjectSpec, SceneFileError, SceneSpec
+from relight.errors import brief
 
 N_OBJECT_SLOTS = 3          # the generator places 1-3 objects
 N_WALL_SLOTS = 8            # rooms of up to 8 walls share one loaded scene
@@ -100,7 +101,7 @@ def _user_mesh(path: str) -> shapes.Mesh:
     try:
         mesh = mi.load_dict({"type": ext[1:], "filename": path, "face_normals": True})
     except Exception as exc:  # noqa: BLE001 - Mitsuba raises RuntimeError with its own text
-        raise SceneFileError(f"mesh {path}: cannot be loaded ({str(exc).splitlines()[0][:120]})") from None
+        raise SceneFileError(f"mesh {path}: cannot be loaded ({brief(exc)})") from None
     p = mi.traverse(mesh)
     v = np.array(p["vertex_positions"], dtype=np.float64).reshape(-1, 3)
     f = np.array(p["faces"], dtype=np.uint32).reshape(-1, 3)

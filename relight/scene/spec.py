@@ -28,6 +28,13 @@ from relight.errors import SceneFileError
 from relight.scene.shapes import MAX_PARTS as MAX_OBJECT_PARTS
 
 SCENE_FORMAT = "relight.scene/v1"
+# Documented limits of a scene file (docs/guarantees.md), checked when it is read, before
+# any allocation: an image or texture of MAX_RES^2 float RGB pixels is 200 MB, far above
+# any use here (the generator's default is 128 px); the command-line options have the same
+# bounds (relight/commands/argtypes.py).
+MAX_RES = 4096            # render.res and room.texture_res, pixels per side
+MAX_SPP = 1 << 16         # render.spp
+MAX_DEPTH = 64            # render.max_depth
 
 
 def _finite(name: str, *values: float) -> None:
@@ -123,6 +130,9 @@ class RoomSpec:
         if len(self.wall_textures) != self.n_walls:
             raise SceneFileError(f"room: {self.n_walls} walls but {len(self.wall_textures)} textures")
         object.__setattr__(self, "wall_textures", tuple(dict(t) for t in self.wall_textures))
+        res = self.texture_res
+        if not isinstance(res, int) or isinstance(res, bool) or not 1 <= res <= MAX_RES:
+            raise SceneFileError(f"room.texture_res: expected an integer in [1, {MAX_RES}], got {res!r}")
 
 
 @dataclass(frozen=True)
@@ -199,6 +209,9 @@ class RenderSpec:
                 raise SceneFileError(f"render.{name}: expected a positive integer, got {v!r}")
         if self.seed >= 2 ** 32:
             raise SceneFileError("render.seed must fit in 32 bits")
+        for name, hi in (("res", MAX_RES), ("spp", MAX_SPP), ("max_depth", MAX_DEPTH)):
+            if getattr(self, name) > hi:
+                raise SceneFileError(f"render.{name}: at most {hi} (the documented limit), got {getattr(self, name)}")
         if self.sampler not in SAMPLERS:
             raise SceneFileError(f"render.sampler: expected one of {', '.join(SAMPLERS)}, got {self.sampler!r}")
 

@@ -288,7 +288,7 @@ def generate_mid(out_dir: str | os.PathLike, scenes: int, seed: int = 0, cfg: Mi
     from tqdm import tqdm
     from relight import backend
     from relight.dataset import MANIFEST, SEED_LIMIT, read_manifest
-    from relight.fileio import FolderLock, remove_temps, write_json
+    from relight.fileio import FolderLock, append_line, remove_temps, write_json
     cfg = cfg or MidConfig()
     if isinstance(scenes, bool) or not isinstance(scenes, int) or not 0 <= scenes <= 9999:
         raise DatasetError(f"scenes must be an integer in [0, 9999], got {scenes!r}")
@@ -314,9 +314,7 @@ def generate_mid(out_dir: str | os.PathLike, scenes: int, seed: int = 0, cfg: Mi
         with open(manifest_path, "ab") as manifest:
             for i in todo:
                 records, doc = _render_room(out, cfg, seed, i, stats)
-                manifest.write(b"".join((json.dumps(r) + "\n").encode() for r in records))
-                manifest.flush()
-                os.fsync(manifest.fileno())
+                append_line(manifest, b"".join((json.dumps(r) + "\n").encode() for r in records), manifest_path)
                 write_json(os.path.join(out, "scenes", f"{i:04d}.json"), doc)   # marks the scene finished
                 stats.scenes_written += 1
                 bar.update(len(cfg.directions))

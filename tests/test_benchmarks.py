@@ -1,0 +1,109 @@
+"""Every quick command of README's "Benchmarks" table runs from a fresh clone as printed:
+its arguments are valid (each benchmark's ``--check-args``), a bad setting is one line and
+exit 2 like the command line, and (``-m slow``) each command runs to the end."""
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import subprocess
+import sys
+
+import pytest
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+README = os.path.join(REPO, "README.md")
+RUN_TIMEOUT_S = 1800   # a quick command on the shared 2-core machine
+
+
+def quick_commands() -> list[list[str]]:
+    """The argument lists (script first) of the ``| `.venv/bin/python benchmarks/...` |``
+    rows of README's "Benchmarks" section."""
+    with open(README, encoding="utf-8") as f:
+        text = f.read()
+    section = text.split("\n## Benchmarks", 1)[1].split("\n## ", 1)[0]
+    rows = re.findall(r"^\| `\.venv/bin/python (benchmarks/[\w.]+\.py[^`]*)` \|", section, re.M)
+    return [shlex.split(r) for r in rows]
+
+
+COMMANDS = quick_commands()
+
+
+def _env():
+    return dict(os.environ, PYTHONPATH=REPO + os.pathsep + os.environ.get("PYTHONPATH", ""))
+
+
+def _run(argv, timeout=300):
+    return subprocess.run([sys.executable, *argv], capture_output=True, text=True, cwd=REPO, env=_env(),
+                          timeout=timeout)
+
+
+def test_readme_lists_the_benchmarks():
+    names = {os.path.basename(c[0]) for c in COMMANDS}
+    assert len(COMMANDS) >= 10 and "bench_mid.py" in names, names
+    for argv in COMMANDS:
+        assert os.path.isfile(os.path.join(REPO, argv[0])), argv[0]
+
+
+def _run_here(argv, capfd, monkeypatch):
+    """Run a benchmark script as ``__main__`` in this process (its heavy imports are shared
+    between the cases); returns (exit code, stdout, stderr)."""
+    import runpy
+    monkeypatch.setattr(sys, "argv", [os.path.join(REPO, argv[0]), *argv[1:]])
+    monkeypatch.chdir(REPO)
+    try:
+        runpy.run_path(os.path.join(REPO, argv[0]), run_name="__main__")
+        code = 0
+    except SystemExit as exc:
+        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+    out, err = capfd.readouterr()
+    return code, out, err
+
+
+@pytest.mark.parametrize("argv", COMMANDS, ids=lambda a: os.path.basename(a[0]))
+def test_quick_command_arguments_are_valid(argv, capfd, monkeypatch):
+    code, out, err = _run_here(argv + ["--check-args"], capfd, monkeypatch)
+    assert code == 0 and "arguments ok" in out, f"README row {' '.join(argv)}: {err.strip()}"
+
+
+def _bad_variants(argv):
+    """The command with each numeric value replaced by a bad one (zero where a count must
+    be positive is not always bad, so: not a number, and absurdly large)."""
+    for i, a in enumerate(argv):
+        if i and re.fullmatch(r"[0-9.]+", a) and argv[i - 1].startswith("--"):
+            for bad in ("nan", "1e308"):
+                yield argv[i - 1], argv[:i] + [bad] + argv[i + 1:]
+            return   # the first numeric option of each command is enough; every type is shared
+
+
+@pytest.mark.parametrize("argv", COMMANDS, ids=lambda a: os.path.basename(a[0]))
+def test_bad_benchmark_setting_is_one_line(argv, capfd, monkeypatch):
+    variants = list(_bad_variants(argv))
+    if not variants:
+        pytest.skip("no numeric option in this command")
+    for option, bad in variants:
+        code, _, err = _run_here(bad, capfd, monkeypatch)
+        lines = err.strip().splitlines()
+        assert code == 2 and len(lines) == 1, err
+        assert "error:" in lines[0] and option in lines[0] and "Traceback" not in err
+
+
+def test_bad_setting_through_a_real_process():
+    r = _run(["benchmarks/bench_compare.py", "--count", "0", "--res", "32"])
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "--count" in r.stderr
+
+
+def test_mid_benchmark_refuses_zero_rooms():
+    r = _run(["benchmarks/bench_mid.py", "--scenes", "0", "--epochs", "1", "--out", "/nonexistent/mid"])
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "--scenes" in r.stderr
+    assert not os.path.exists("/nonexistent/mid")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("argv", COMMANDS, ids=lambda a: os.path.basename(a[0]))
+def test_quick_command_runs(argv, tmp_path):
+    """The command as printed (outputs under /tmp or ~/relight-data, as the README says),
+    to the end: exit 0, no traceback."""
+    r = _run(argv, timeout=RUN_TIMEOUT_S)
+    assert r.returncode == 0, f"{' '.join(argv)}: {r.stderr[-2000:]}"
+    assert "Traceback" not in r.stderr
