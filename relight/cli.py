@@ -18,6 +18,8 @@ import importlib
 import os
 import sys
 
+from relight.errors import user_errors   # the one list of bad-input errors (also for scripts)
+
 # The command modules, in --help order; each has add_commands(subparsers). They sit on
 # top of the library: a command parses arguments and calls one library function.
 COMMAND_MODULES = [
@@ -53,13 +55,6 @@ def build_parser() -> argparse.ArgumentParser:
     for name in COMMAND_MODULES:   # a module that fails to import is a broken install: let it raise
         importlib.import_module(name).add_commands(sub)
     return parser
-
-
-def user_errors() -> tuple[type, ...]:
-    """Exception types that mean 'bad input' (one line, exit 2) rather than a bug: the
-    :mod:`relight.errors` family and the OS's file errors."""
-    from relight.errors import RelightError
-    return (RelightError, FileNotFoundError, PermissionError, IsADirectoryError, NotADirectoryError)
 
 
 def _quiet_libraries() -> None:

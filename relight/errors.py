@@ -16,6 +16,7 @@ __all__ = [
     "RelightError", "ConfigError", "SceneFileError", "DatasetError", "ImageError", "OutputError",
     "PredictionsError", "ModelFileError", "TrainingError", "ProbeError", "InverseError", "BackendError",
     "EngineError", "BlenderError",
+    "DiskFullError", "brief", "user_errors",
 ]
 
 
@@ -112,3 +113,9 @@ def brief(exc: BaseException | str, limit: int = 120) -> str:
         cut = line[:limit + 1].rsplit(" ", 1)[0] if " " in line[:limit + 1] else line[:limit]
         line = cut.rstrip(" ,;:(") + "..."
     return line
+
+
+def user_errors() -> tuple[type, ...]:
+    """Exception types that mean 'bad input' (one line, exit 2) rather than a bug: the
+    :class:`RelightError` family and the OS's file errors."""
+    return (RelightError, FileNotFoundError, PermissionError, IsADirectoryError, NotADirectoryError)

@@ -22,6 +22,7 @@ __all__ = [
     "TEMP_MARK", "LOCK_NAME", "DATASET_OWNED", "temp_path", "is_temp_name", "remove_temps", "check_outputs",
     "check_file_target", "check_folder_target", "atomic_write", "atomic_folder", "write_text", "write_bytes",
     "write_json", "Transaction", "FolderLock", "quiet_library_output",
+    "name_outputs", "describe_output", "human_size", "disk_error", "write_error", "append_line",
 ]
 
 import contextlib

@@ -12,6 +12,7 @@ __all__ = [
     "batch_size", "patience", "width", "iterations", "learning_rate", "seconds", "minutes", "relative_rmse",
     "light_pan", "light_tilt", "field_of_view", "object_parts", "scheduler", "add_scheduler_option",
     "add_mirror_option", "bounded_rgb", "loss_weights",
+    "circle", "OneLineParser", "run_script",
 ]
 
 import argparse
@@ -244,7 +245,7 @@ def run_script(main, prog: str | None = None) -> int:
     stderr and exit code 2, never a traceback."""
     import os
     import sys
-    from relight.cli import user_errors
+    from relight.errors import user_errors
     prog = prog or os.path.basename(sys.argv[0])
     try:
         return int(main() or 0)

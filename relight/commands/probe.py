@@ -3,6 +3,7 @@ from __future__ import annotations
 
 __all__ = [
     "add_commands", "circle", "cmd_probe",
+    "check_circle_fits",
 ]
 
 import os
