@@ -19,7 +19,6 @@
 """
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import math
 import os
@@ -104,12 +103,17 @@ def variant_files(dataset: str, records: list, folder: str, width: int) -> dict[
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--n", type=int, default=4, help="images (default 4; the issue's timing figure: 100)")
-    p.add_argument("--res", type=int, default=128, help="image size in pixels (default 128)")
-    p.add_argument("--width", type=int, default=256, help="map width in pixels (default 256)")
-    p.add_argument("--seed", type=int, default=7, help="dataset seed (default 7)")
-    p.add_argument("--repeats", type=int, default=2, help="timing runs of each kind (default 2; best taken)")
+    from relight.commands import argtypes as at
+    p = at.OneLineParser(description=__doc__.splitlines()[0])
+    p.add_argument("--n", type=at.int_in(1, 10_000, "a count"), default=4,
+                   help="images (default 4; the issue's timing figure: 100)")
+    p.add_argument("--res", type=at.int_in(16, 1024, "an image size in pixels"), default=128,
+                   help="image size in pixels (default 128)")
+    p.add_argument("--width", type=at.int_in(8, 8192, "a map width in pixels"), default=256,
+                   help="map width in pixels (default 256)")
+    p.add_argument("--seed", type=at.seed, default=7, help="dataset seed (default 7)")
+    p.add_argument("--repeats", type=at.int_in(1, 100, "a count"), default=2,
+                   help="timing runs of each kind (default 2; best taken)")
     p.add_argument("--data", default=os.path.expanduser("~/relight-data/bench_envmap"),
                    help="work folder (dataset and maps; default ~/relight-data/bench_envmap)")
     args = p.parse_args(argv)
@@ -179,4 +183,5 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from relight.commands import argtypes
+    sys.exit(argtypes.run_script(main))

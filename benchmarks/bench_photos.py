@@ -24,8 +24,6 @@ Sets whose data are absent are skipped with one line.
 """
 from __future__ import annotations
 
-import argparse
-import json
 import os
 import subprocess
 import sys
@@ -85,20 +83,18 @@ def ensure_devset(root: str, n: int) -> tuple[str | None, str | None, str | None
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    from relight.commands import argtypes as at
+    ap = at.OneLineParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--model", action="append", default=None,
                     help="model file or run folder (repeatable; default: the shipped model)")
     ap.add_argument("--devset", default=os.path.expanduser(os.path.join("~", "relight-data", "photo")),
                     help="folder of the Mitsuba / Cycles dev sets (made when missing)")
-    ap.add_argument("--n", type=int, default=320, help="dev-set images (default 320)")
+    ap.add_argument("--n", type=at.int_in(1, 100_000, "a count"), default=320, help="dev-set images (default 320)")
     ap.add_argument("--no-devset", action="store_true", help="skip the Mitsuba / Cycles dev sets")
-    ap.add_argument("--camera-tilt", type=float, default=None,
+    ap.add_argument("--camera-tilt", type=at.float_in(-89.0, 89.0, "a camera tilt in degrees"), default=None,
                     help="decode with this camera tilt instead of each model's own (or the paper's 45)")
     ap.add_argument("--json", default=None, help="also write every summary to this JSON file")
     args = ap.parse_args(argv)
-    if args.n < 1:
-        sys.stderr.write("bench_photos: error: --n must be a positive integer\n")
-        return 2
     from relight.errors import RelightError
     from relight.net import photos
     from relight.net.predict import load_model
@@ -123,7 +119,6 @@ def main(argv=None) -> int:
                 sets.append((f"dev set, Cycles (the same {args.n} scenes)", "data", cycles, None))
                 sets.append((f"dev set, Cycles + Blender's AgX view (the same {args.n})", "data", agx, None))
         results = {}
-        head = f"{'set / model':<44}  {'n':>4}  {'direction (camera frame) med / mean':>15}"
         for label, kind, folder, names in sets:
             print(f"\n{label}")
             if kind == "photo":
@@ -140,8 +135,8 @@ def main(argv=None) -> int:
                     s = photos.summary(photos.score_dataset(model, folder, limit=args.n))
                     print(_row(f"  {os.path.basename(str(name))}", s, head_keys))
                 results[f"{label} | {name}"] = s
-        print(f"\ncolumns: median and mean degrees; cone90 = share of 90% cones holding the truth; "
-              f"ood = share flagged out-of-distribution")
+        print("\ncolumns: median and mean degrees; cone90 = share of 90% cones holding the truth; "
+              "ood = share flagged out-of-distribution")
         if args.json:
             from relight.fileio import write_json
             write_json(args.json, results)
@@ -152,4 +147,5 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from relight.commands import argtypes
+    sys.exit(argtypes.run_script(main))

@@ -24,7 +24,6 @@ exit 2.
 """
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import shutil
@@ -132,19 +131,17 @@ def view_transform_twin(src: str, out: str, view: str = "AgX", progress: bool = 
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    from relight.commands import argtypes as at
+    ap = at.OneLineParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("src", help="source dataset folder (relight generate output)")
     ap.add_argument("--out", required=True, help="twin dataset folder to write (resumable)")
-    ap.add_argument("--spp", type=int, default=DEFAULT_SPP, help=f"Cycles samples per pixel (default {DEFAULT_SPP})")
-    ap.add_argument("--limit", type=int, default=None, help="only the first N records")
+    ap.add_argument("--spp", type=at.spp, default=DEFAULT_SPP, help=f"Cycles samples per pixel (default {DEFAULT_SPP})")
+    ap.add_argument("--limit", type=at.int_in(1, 1_000_000, "a count"), default=None, help="only the first N records")
     ap.add_argument("--view-transform", default=None, metavar="VIEW",
                     help="instead of rendering: copy the twin SRC with its PNGs made by Blender's view "
                          "transform VIEW (e.g. AgX, Filmic, Standard) from its EXRs")
     args = ap.parse_args(argv)
     from relight.errors import RelightError
-    if args.spp < 1 or (args.limit is not None and args.limit < 1):
-        sys.stderr.write("cycles_twin: error: --spp and --limit must be positive integers\n")
-        return 2
     try:
         if args.view_transform:
             n = view_transform_twin(args.src, args.out, args.view_transform)
@@ -159,4 +156,5 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from relight.commands import argtypes
+    sys.exit(argtypes.run_script(main))
