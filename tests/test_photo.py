@@ -202,3 +202,25 @@ def test_photo_set_reader(tmp_path):
     (tmp_path / "lights.txt").write_text("3\n0 0 1\n")
     with pytest.raises(DatasetError):
         read_photo_set(str(tmp_path))
+
+
+def test_calibrate_fits_only_the_ood_detector_in_mode_none(tmp_path):
+    """``relight calibrate --mode none --ood``: the kappa head and its temperature stay as they
+    came, the detector is fitted and travels in the file; mode none alone is refused."""
+    from conftest import tiny_dataset, untrained_model
+
+    from relight.errors import TrainingError
+    from relight.net.calibrate import CalibrationConfig, calibrate_model_file
+    from relight.net.io import load_model_file
+    data = tiny_dataset(tmp_path / "d", count=70, seed=3, res=32)
+    model_path = untrained_model(tmp_path / "m.safetensors", res=32)
+    before = load_model_file(model_path)
+    out = tmp_path / "ood.safetensors"
+    report = calibrate_model_file(model_path, data, out, CalibrationConfig(split="all", mode="none", ood=True))
+    after = load_model_file(out)
+    assert report["ood"]["n"] == 70 and after.config.ood_dims == report["ood"]["ood_dims"]
+    assert float(after.ood_threshold) == pytest.approx(report["ood"]["ood_threshold"], rel=1e-6)
+    for k, v in before.state_dict().items():
+        assert torch.equal(v, after.state_dict()[k]), k
+    with pytest.raises(TrainingError):
+        calibrate_model_file(model_path, data, tmp_path / "x.safetensors", CalibrationConfig(split="all", mode="none"))

@@ -76,8 +76,9 @@ def add_commands(sub) -> None:
                    help="dataset folder; repeat it for a model trained on several (their splits are joined)")
     c.add_argument("--split", default="val", choices=["train", "val", "test", "all"],
                    help="held-out split to fit on (default val; never the split you report on)")
-    c.add_argument("--mode", default="head", choices=["head", "last", "temperature"],
-                   help="refit the whole kappa head (default), only its last layer, or only a temperature")
+    c.add_argument("--mode", default="head", choices=["head", "last", "temperature", "none"],
+                   help="refit the whole kappa head (default), only its last layer, only a temperature, or "
+                        "nothing (none: with --ood, only the out-of-distribution detector is fitted)")
     c.add_argument("--out", required=True, help="calibrated model file to write (.safetensors)")
     c.add_argument("--ood", action="store_true",
                    help="also fit the out-of-distribution detector on the split (predictions then carry "
@@ -137,13 +138,14 @@ def cmd_calibrate(args) -> int:
     check_file_target(args.out)
     rep = calibrate_model_file(args.model, args.data, args.out,
                                CalibrationConfig(split=args.split, mode=args.mode, ood=args.ood), progress=True)
-    b, a = rep["check_before"], rep["check_after"]
-    fmt = (lambda s: f"NLL {s['nll_mean']:.3f}, 90% cone covers {100 * s['cone90_coverage']:.1f}%, Spearman "
-                     + ("-" if s["spearman_cone90_error"] is None else f"{s['spearman_cone90_error']:.2f}"))
-    print(f"{rep['n_images']} images of split {rep['split']} ({rep['n_fit']} fit / {rep['n_check']} check "
-          f"predictions), mode {args.mode}, {rep['best_step']} steps, temperature {rep['temperature']:.3f}")
-    print(f"check part before: {fmt(b)}")
-    print(f"check part after:  {fmt(a)}")
+    if args.mode != "none":
+        b, a = rep["check_before"], rep["check_after"]
+        fmt = (lambda s: f"NLL {s['nll_mean']:.3f}, 90% cone covers {100 * s['cone90_coverage']:.1f}%, Spearman "
+                         + ("-" if s["spearman_cone90_error"] is None else f"{s['spearman_cone90_error']:.2f}"))
+        print(f"{rep['n_images']} images of split {rep['split']} ({rep['n_fit']} fit / {rep['n_check']} check "
+              f"predictions), mode {args.mode}, {rep['best_step']} steps, temperature {rep['temperature']:.3f}")
+        print(f"check part before: {fmt(b)}")
+        print(f"check part after:  {fmt(a)}")
     if "ood" in rep:
         print(f"out-of-distribution detector: {rep['ood']['ood_dims']} components, threshold "
               f"{rep['ood']['ood_threshold']:.3f} ({100 * rep['ood']['quantile']:g}% of {rep['ood']['n']} images below)")

@@ -51,7 +51,7 @@ from relight.net.data import LightDataset, dataset_folders, flip_image, flip_y, 
 from relight.net.model import head_kappa
 from relight.net.uncertainty import direction_from_y, fit_temperature, uncertainty_summary, vmf_nll
 
-MODES = ("head", "last", "temperature")
+MODES = ("head", "last", "temperature", "none")   # none: the kappa head as it is (with ood=True)
 MIN_IMAGES = 10   # fewer held-out images than this cannot calibrate anything
 
 
@@ -243,14 +243,19 @@ def calibrate_model_file(model_path: str | os.PathLike, data_dir, out_path: str 
     Returns the report."""
     from relight.net.io import load_model_file, save_model
     model = load_model_file(model_path)
-    report = calibrate_kappa(model, data_dir, cfg, progress=progress)
     info = dict(getattr(model, "info", {}) or {})
-    info["kappa_temperature"] = report["temperature"]
-    info["kappa_calibration"] = report | {"model": os.path.abspath(os.fspath(model_path))}
+    if cfg.mode == "none":   # only the out-of-distribution detector; kappa as it came
+        if not cfg.ood:
+            raise TrainingError("calibration mode none changes nothing: add --ood")
+        report = {"data_dir": folders_record(dataset_folders(data_dir)), "split": cfg.split, "mode": "none"}
+    else:
+        report = calibrate_kappa(model, data_dir, cfg, progress=progress)
+        info["kappa_temperature"] = report["temperature"]
+        info["kappa_calibration"] = report | {"model": os.path.abspath(os.fspath(model_path))}
     if cfg.ood:
         from relight.net.ood import fit_ood
         dataset = LightDataset(dataset_folders(data_dir), cfg.split, model.config.res, cache=False)
         model, report["ood"] = fit_ood(model, dataset.batch(range(len(dataset))))
-        info["ood"] = report["ood"]
+        info["ood"] = report["ood"] | {"data_dir": folders_record(dataset_folders(data_dir)), "split": cfg.split}
     save_model(out_path, model, info)
     return report
