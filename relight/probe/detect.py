@@ -178,6 +178,51 @@ def refine_sphere(image: np.ndarray, camera: Camera, guess: Sphere, smoothed: np
     return sphere, support
 
 
+def outline_fit_px(smoothed: np.ndarray, camera: Camera, sphere: Sphere, x, y) -> float:
+    """How well edge points ``(x, y)`` fit ``sphere``'s outline: the mean of
+    ``min(|distance|, 1.5)`` pixels (a robust misfit; far points count alike)."""
+    return float(np.mean(np.minimum(np.abs(_outline_distance(camera, sphere, x, y)), 1.5)))
+
+
+def constrained_refinement(image: np.ndarray, camera: Camera, circle, tolerance_px: float
+                           ) -> tuple[Sphere, dict]:
+    """Refine a given circle ``(cx, cy, r)`` on the image's edges within ``tolerance_px``:
+    the edge fit (:func:`refine_sphere`, started from the circle) is pulled back so that
+    its centre moves and its radius changes by at most ``tolerance_px``, and it is kept
+    only when the outline's misfit to the edges near the circle
+    (:func:`outline_fit_px`) is smaller than the given circle's. Returns the sphere and
+    a report: ``tolerance_px``, ``accepted``, ``moved_px``, ``radius_change_px``,
+    ``fit_given_px``, ``fit_refined_px`` (or ``reason`` when no fit was possible)."""
+    guess = sphere_from_circle(camera, *circle)
+    report = {"tolerance_px": float(tolerance_px), "accepted": False}
+    smoothed = _edge_image(image)
+    try:
+        fitted, _ = refine_sphere(image, camera, guess, smoothed, first_band_px=max(2.0, tolerance_px + 1.5))
+    except ProbeError as exc:
+        report["reason"] = str(exc)
+        return guess, report
+    cx, cy, r = outline_circle(camera, fitted)
+    dx, dy, dr = cx - circle[0], cy - circle[1], r - circle[2]
+    shift = math.hypot(dx, dy)
+    if shift > tolerance_px:
+        dx, dy = dx * tolerance_px / shift, dy * tolerance_px / shift
+    dr = float(np.clip(dr, -tolerance_px, tolerance_px))
+    candidate = sphere_from_circle(camera, circle[0] + dx, circle[1] + dy, circle[2] + dr)
+    x, y, _ = edge_points(smoothed, camera, guess, tolerance_px + 1.5, prior=False)
+    if x.size < 0.2 * EDGE_ANGLES:
+        report["reason"] = "too little of the outline is visible as an edge"
+        return guess, report
+    given_fit = outline_fit_px(smoothed, camera, guess, x, y)
+    refined_fit = outline_fit_px(smoothed, camera, candidate, x, y)
+    report.update(moved_px=round(math.hypot(dx, dy), 4), radius_change_px=round(dr, 4),
+                  fit_given_px=round(given_fit, 4), fit_refined_px=round(refined_fit, 4))
+    if refined_fit < given_fit:
+        report["accepted"] = True
+        rms = float(np.sqrt(np.mean(np.minimum(_outline_distance(camera, candidate, x, y) ** 2, 2.25))))
+        return Sphere(candidate.centre, candidate.radius, rms, int(x.size)), report
+    return guess, report
+
+
 def _outline_distance(camera: Camera, sphere: Sphere, x, y) -> np.ndarray:
     """Signed radial distance (pixels, + outside) of points from the sphere's outline."""
     cx, cy, _ = outline_circle(camera, sphere)
