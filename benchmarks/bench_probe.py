@@ -6,8 +6,8 @@ the real photographs in shared/data/psm_spheres.
 The set (``--set DIR``, made once with ``--make N``): ``probeNNN.json`` (a
 ``relight.probe-scene/v1`` file: the room as a relight scene file, the spheres, the
 light, the truth), ``probeNNN.{mitsuba,cycles}.exr`` (linear) and ``.png`` (8-bit sRGB,
-one exposure per scene for both renderers, chosen from the Mitsuba render so the gray
-sphere's lit side is near 0.75: highlights and brightly lit floor patches clip).
+one exposure per scene for both renderers, chosen from the Mitsuba render so that its
+brightest 2% clip: highlights and brightly lit floor or wall patches clip).
 Truth: the direction from the chrome sphere's mirror point of the light's centre toward
 that centre, in the camera frame (the light is 1-3.5 m away, so the direction from the
 sphere's centre differs by up to a degree; both are in the file).
@@ -43,7 +43,7 @@ PSM = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 
                    "psm_spheres")
 TARGETS = {"cycles png, circle given": (1.0, 5.0), "cycles png, automatic": (1.5, 8.0),
            "psm_spheres, mask": (2.0, None)}
-PNG_GRAY_LEVEL = 0.75
+PNG_CLIP_SHARE = 0.02
 
 
 def _angle_deg(a, b) -> float:
@@ -60,7 +60,6 @@ def make_set(folder: str, count: int, spp: int) -> None:
     from relight.blender import blender_python
     from relight.fileio import atomic_write
     from relight.imageio import write_exr, write_png
-    from relight.probe import geometry as geom
     from relight.verify import probe_scenes as ps
     os.makedirs(folder, exist_ok=True)
     backend.init()
@@ -72,12 +71,8 @@ def make_set(folder: str, count: int, spp: int) -> None:
             continue
         d = ps.sample_room_scene(i)
         image = ps.render_room_mitsuba(d, spp=spp)
-        # exposure: the gray sphere's lit side near PNG_GRAY_LEVEL
-        res = d["truth"]["res"]
-        cam = geom.Camera.from_fov(res, res, d["truth"]["fov_deg"])
-        ys, xs = np.mgrid[0:res, 0:res] + 0.5
-        on_gray = geom.surface(cam, ps.room_sphere(d, "gray"), xs, ys)["hit"]
-        d["png_exposure"] = float(PNG_GRAY_LEVEL / max(np.percentile(image[on_gray].mean(-1), 95), 1e-6))
+        # exposure as a camera's: the brightest PNG_CLIP_SHARE of the pixels clip
+        d["png_exposure"] = float(1.0 / max(np.percentile(image.mean(-1), 100.0 * (1.0 - PNG_CLIP_SHARE)), 1e-6))
         write_exr(path[:-5] + ".mitsuba.exr", image)
         write_png(path[:-5] + ".mitsuba.png", image, exposure=d["png_exposure"])
         atomic_write(path, lambda tmp, d=d: open(tmp, "w").write(json.dumps(d, indent=1)))

@@ -44,6 +44,7 @@ DIFFUSE_RIM_FRACTION = 0.9     # diffuse fit: normals within 0.9 of the radius (
 ORTHO_DEPTH = 1.0e4            # z of an orthographic sphere's centre (any value works)
 OUTLINE_LOSS_SCALE_PX = 0.5    # robust outline fit: residuals beyond ~0.5 px count less
 RIM_BLOB_ANGLE_DEG = 65.0      # a blob whose normals lie beyond this from the view ray is grazing
+WINDOW_MARGIN_PX = 2.5         # a compact highlight's centroid window: its radius plus 2.5 px (lens blur)
 AMBIGUITY_MARGIN = 0.5         # two highlight candidates within this score of each other: ambiguous
 
 
@@ -425,6 +426,10 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     px = float(np.average(xs + x0 + 0.5, weights=weights[ys, xs]))
     py = float(np.average(ys + y0 + 0.5, weights=weights[ys, xs]))
     compact = _spread_deg(refl[region]) <= spread_limit
+    if compact:
+        px, py = _soft_window_centroid(crop, usable, (px - x0, py - y0), background,
+                                       math.sqrt(region.sum() / math.pi) + WINDOW_MARGIN_PX)
+        px, py = px + x0, py + y0
     at_centroid = surface(camera, sphere, np.array([px]), np.array([py]))
     if compact and at_centroid["hit"][0]:
         # a small highlight: the lens blurs it symmetrically in the image, not in directions
@@ -452,6 +457,32 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     quality["error_budget_deg"] = {k: round(v, 3) for k, v in budget.items()}
     quality["uncertainty_deg"] = budget["total_deg"]
     return Highlight(to_light, (px, py), quality)
+
+
+def _soft_window_centroid(crop: np.ndarray, usable: np.ndarray, start: tuple[float, float], background: float,
+                          radius: float, rounds: int = 6) -> tuple[float, float]:
+    """Sub-pixel centre ``(x, y)`` (crop pixel coordinates, centres at +0.5) of a compact
+    highlight: the centroid of intensity above ``background`` within a round window of
+    ``radius`` pixels whose edge tapers linearly over two pixels, re-centred on the
+    centroid until it settles. A pixel entering or leaving the window does so with a
+    weight near zero, so the estimate follows an image shift smoothly (a threshold
+    region would jump by whole pixels)."""
+    h, w = crop.shape
+    ys, xs = np.mgrid[0:h, 0:w] + 0.5
+    signal = np.clip(crop - background, 0.0, None) * usable
+    cx, cy = start
+    for _ in range(rounds):
+        taper = np.clip(radius + 1.0 - np.hypot(xs - cx, ys - cy), 0.0, 2.0) / 2.0
+        weights = signal * taper
+        total = weights.sum()
+        if not total > 0:
+            break
+        nx, ny = float((weights * xs).sum() / total), float((weights * ys).sum() / total)
+        done = math.hypot(nx - cx, ny - cy) < 1e-4
+        cx, cy = nx, ny
+        if done:
+            break
+    return cx, cy
 
 
 def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.ndarray, index: np.ndarray,

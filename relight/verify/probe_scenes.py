@@ -322,6 +322,22 @@ def _place_ball(rng, cam_spec, res: int, radius_px: float, taken: list, lower: f
     return None
 
 
+def _blocked(a, b, blockers) -> bool:
+    """Whether the segment from ``a`` to ``b`` passes through a blocker: ``(centre,
+    radius, 0)`` a ball, ``(foot, radius, height)`` a vertical cylinder standing at
+    ``foot`` (a clutter object's bounds)."""
+    t = np.linspace(0.0, 1.0, 400)[:, None]
+    pts = np.asarray(a, np.float64) + t * (np.asarray(b, np.float64) - np.asarray(a, np.float64))
+    for centre, radius, height in blockers:
+        c = np.asarray(centre, np.float64)
+        if height == 0.0:
+            if (np.linalg.norm(pts - c, axis=1) < radius * 1.02).any():
+                return True
+        elif ((np.hypot(pts[:, 0] - c[0], pts[:, 1] - c[1]) < radius) & (pts[:, 2] < height)).any():
+            return True
+    return False
+
+
 def specular_point(centre, radius: float, eye, light) -> np.ndarray:
     """The point of a mirror sphere where ``light`` (a point) reflects toward ``eye``: the
     normal there bisects the unit directions to both (fixed point iteration, then Newton-free
@@ -407,6 +423,11 @@ def _sample_room_scene(rng, seed: int, res: int | None) -> dict:
         break
     else:
         raise _Unplaceable
+    spot = specular_point(c_centre, c_radius, eye, pos)
+    blockers = [(gray[0], gray[1], 0.0), (ball[0], ball[1], 0.0)] + [
+        (np.array([o.position_m[0], o.position_m[1], 0.0]), o.size_m * 1.15, o.size_m * 3.0) for o in objects]
+    if _blocked(spot, pos, blockers) or _blocked(eye, spot, blockers):
+        raise _Unplaceable     # the light's reflection would be hidden: no truth to measure
     ang = math.radians(rng.uniform(*ROOM_LIGHT_ANGULAR_RADIUS_DEG))
     light_radius = float(dist * math.tan(ang))
     power = float(rng.uniform(*ROOM_IRRADIANCE) * 4 * math.pi * dist ** 2)
@@ -414,7 +435,6 @@ def _sample_room_scene(rng, seed: int, res: int | None) -> dict:
     light = LightSpec(r_m=1.0, pan_deg=0.0, tilt_deg=45.0, rgb=(1.0, 1.0, 1.0), strength=1e-9)
     spec = SceneSpec(id=f"probe{seed:03d}", camera=cam, light=light, room=room, objects=tuple(objects),
                      render=RenderSpec(res=res, spp=ROOM_SPP, max_depth=5, seed=seed))
-    spot = specular_point(c_centre, c_radius, eye, pos)
     to_light_world = (pos - spot) / np.linalg.norm(pos - spot)
     to_light = frames.world_to_camera(to_light_world, cam.tilt_deg, cam.pan_deg)
     centre_dir = frames.world_to_camera((pos - c_centre) / np.linalg.norm(pos - c_centre), cam.tilt_deg,
