@@ -35,6 +35,7 @@ REJECT_SIGMAS = 1.5
 REJECT_MIN_PX = 0.75
 EDGE_INLIER_PX = 1.0           # edge points this close to the fitted outline support it
 SUPPORT_BAND_FRACTION = 0.25   # ... when they are the strongest edge within 25% of the radius
+ACCEPT_FIT_RATIO = 0.8        # a given circle's refinement is kept only when it cuts the edge misfit by 20%
 MIN_EDGE_SUPPORT = 0.2         # share of the outline where it is the strongest edge, to call it a sphere
 MIN_RADIUS_FRACTION = 0.02     # detection radii, as fractions of the image's shorter side
 MAX_RADIUS_FRACTION = 0.45
@@ -216,7 +217,7 @@ def constrained_refinement(image: np.ndarray, camera: Camera, circle, tolerance_
     refined_fit = outline_fit_px(smoothed, camera, candidate, x, y)
     report.update(moved_px=round(math.hypot(dx, dy), 4), radius_change_px=round(dr, 4),
                   fit_given_px=round(given_fit, 4), fit_refined_px=round(refined_fit, 4))
-    if refined_fit < given_fit:
+    if refined_fit < ACCEPT_FIT_RATIO * given_fit:
         report["accepted"] = True
         rms = float(np.sqrt(np.mean(np.minimum(_outline_distance(camera, candidate, x, y) ** 2, 2.25))))
         return Sphere(candidate.centre, candidate.radius, rms, int(x.size)), report

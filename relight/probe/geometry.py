@@ -44,7 +44,7 @@ DIFFUSE_RIM_FRACTION = 0.9     # diffuse fit: normals within 0.9 of the radius (
 ORTHO_DEPTH = 1.0e4            # z of an orthographic sphere's centre (any value works)
 OUTLINE_LOSS_SCALE_PX = 0.5    # robust outline fit: residuals beyond ~0.5 px count less
 RIM_BLOB_ANGLE_DEG = 65.0      # a blob whose normals lie beyond this from the view ray is grazing
-WINDOW_MARGIN_PX = 2.5         # a compact highlight's centroid window: its radius plus 2.5 px (lens blur)
+WINDOW_MARGIN_PX = 1.5         # a compact highlight's centroid window: its core's radius plus 1.5 px (lens blur)
 AMBIGUITY_MARGIN = 0.5         # two highlight candidates within this score of each other: ambiguous
 
 
@@ -427,8 +427,17 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     py = float(np.average(ys + y0 + 0.5, weights=weights[ys, xs]))
     compact = _spread_deg(refl[region]) <= spread_limit
     if compact:
-        px, py = _soft_window_centroid(crop, usable, (px - x0, py - y0), background,
-                                       math.sqrt(region.sum() / math.pi) + WINDOW_MARGIN_PX)
+        # the core's own centre, then a soft window around it above the level of its
+        # surroundings (the 90th percentile of a ring just outside the window: a lit
+        # floor's reflection beside a small clipped highlight must not pull it)
+        cy_, cx_ = np.nonzero(best_core)
+        start = (float(cx_.mean()) + 0.5, float(cy_.mean()) + 0.5)
+        radius = math.sqrt(best_core.sum() / math.pi) + WINDOW_MARGIN_PX
+        yy, xx = np.mgrid[0:crop.shape[0], 0:crop.shape[1]] + 0.5
+        dist = np.hypot(xx - start[0], yy - start[1])
+        ring = usable & (dist > radius + 1.0) & (dist <= radius + 3.0)
+        level = float(np.percentile(crop[ring], 90)) if ring.sum() >= 4 else background
+        px, py = _soft_window_centroid(crop, usable, start, level, radius)
         px, py = px + x0, py + y0
     at_centroid = surface(camera, sphere, np.array([px]), np.array([py]))
     if compact and at_centroid["hit"][0]:

@@ -265,6 +265,7 @@ ROOM_LIGHT_ANGULAR_RADIUS_DEG = (2.0, 4.0)   # the light as seen from the chrome
 ROOM_IRRADIANCE = (3.0, 6.0)         # W/m^2 from the light at the chrome sphere
 CHROME_REFLECTANCE = 0.6             # a perfect mirror times this (Cr is 0.55-0.65)
 ROOM_SPP = 64
+ROOM_MAX_VIEW_LIGHT_ANGLE_DEG = 120.0   # back light: beyond this, a 10 px sphere's highlight lies within a pixel of its rim
 ROOM_SKY_RADIANCE = 0.06             # a dim constant sky above the open room (fill light)
 
 
@@ -414,7 +415,7 @@ def _sample_room_scene(rng, seed: int, res: int | None) -> dict:
         az = rng.uniform(0, 2 * math.pi)
         l = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
         cos_v = float(l @ to_cam)
-        if (cos_v > 0) != front or math.degrees(math.acos(cos_v)) > 140.0:
+        if (cos_v > 0) != front or math.degrees(math.acos(cos_v)) > ROOM_MAX_VIEW_LIGHT_ANGLE_DEG:
             continue
         dist = rng.uniform(1.0, 3.5)
         pos = c_centre + dist * l
