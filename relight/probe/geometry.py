@@ -44,6 +44,7 @@ DIFFUSE_RIM_FRACTION = 0.9     # diffuse fit: normals within 0.9 of the radius (
 ORTHO_DEPTH = 1.0e4            # z of an orthographic sphere's centre (any value works)
 OUTLINE_LOSS_SCALE_PX = 0.5    # robust outline fit: residuals beyond ~0.5 px count less
 RIM_BLOB_ANGLE_DEG = 65.0      # a blob whose normals lie beyond this from the view ray is grazing
+SMALL_HIGHLIGHT_PX = 12        # a highlight of at most this many pixels: measured in a soft window
 WINDOW_MARGIN_PX = 1.5         # a compact highlight's centroid window: its core's radius plus 1.5 px (lens blur)
 AMBIGUITY_MARGIN = 0.5         # two highlight candidates within this score of each other: ambiguous
 
@@ -426,7 +427,7 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     px = float(np.average(xs + x0 + 0.5, weights=weights[ys, xs]))
     py = float(np.average(ys + y0 + 0.5, weights=weights[ys, xs]))
     compact = _spread_deg(refl[region]) <= spread_limit
-    if compact:
+    if compact and region.sum() <= SMALL_HIGHLIGHT_PX:
         # the core's own centre, then a soft window around it above the level of its
         # surroundings (the 90th percentile of a ring just outside the window: a lit
         # floor's reflection beside a small clipped highlight must not pull it)
