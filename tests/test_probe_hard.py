@@ -209,3 +209,75 @@ def test_highlight_moves_with_a_half_pixel_image_shift(phase, clip):
     step = pixels[1] - pixels[0]
     assert abs(step[0] - SHIFT_PX) <= SHIFT_TOL_PX
     assert abs(step[1] - 0.3 * SHIFT_PX) <= SHIFT_TOL_PX
+
+
+# ------------------------------------------------------------------ a folder with circles from a CSV
+def _run(args):
+    try:
+        return main(args)
+    except SystemExit as exc:
+        return int(exc.code)
+
+
+@pytest.fixture
+def photo_folder(tmp_path):
+    """Three 8-bit photographs of a mirror sphere under known lights, and their circles."""
+    from relight.imageio import write_png
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    lights, rows = {}, ["image,chrome_cx,chrome_cy,chrome_r"]
+    for k, (where, light) in enumerate((((70.0, 60.0), (0.3, 0.4, 0.87)), ((90.0, 55.0), (-0.4, 0.2, 0.9)),
+                                        ((80.0, 66.0), (0.1, -0.3, 0.95)))):
+        sphere = _sphere_at(cam, *where, 9.0)
+        light = np.asarray(light) / np.linalg.norm(light)
+        write_png(folder / f"img{k}.png", _render(cam, sphere, light))
+        lights[f"img{k}"] = light
+        rows.append(f"img{k}.png," + ",".join(f"{v:.3f}" for v in detect.outline_circle(cam, sphere)))
+    csv_path = tmp_path / "circles.csv"
+    csv_path.write_text("\n".join(rows) + "\n")
+    return folder, csv_path, lights
+
+
+def test_batch_measures_every_listed_photo(photo_folder, tmp_path):
+    folder, csv_path, lights = photo_folder
+    out, qa = tmp_path / "pred.json", tmp_path / "qa"
+    assert _run(["probe", "--folder", str(folder), "--circles", str(csv_path), "--fov", str(FOV_DEG),
+                 "--out", str(out), "--qa", str(qa)]) == 0
+    entries = json.loads(out.read_text())["predictions"]
+    assert [e["id"] for e in entries] == ["img0", "img1", "img2"]
+    for e in entries:
+        assert e["chrome_found_by"].startswith("circle")
+        assert _angle(e["to_light_camera"], lights[e["id"]]) < DIR_TOL_DEG
+    assert sorted(os.listdir(qa)) == ["img0.png", "img1.png", "img2.png"]
+
+
+def test_batch_bad_rows_give_one_line_naming_the_row_and_write_nothing(photo_folder, tmp_path, capsys):
+    import cv2
+    folder, csv_path, _ = photo_folder
+    cv2.imwrite(str(folder / "black.png"), np.zeros((H, W, 3), np.uint8))
+    good = csv_path.read_text().splitlines()
+    cases = {
+        "not a number": good + ["img0.png,70,60,abc"],
+        "missing image": good + ["nothere.png,70,60,20"],
+        "partial circle": good + ["img1.png,70,,20"],
+        "unknown column": ["image,chrome_x,chrome_cy,chrome_r"] + good[1:],
+        "duplicate id": good + [good[1]],
+        "no highlight": good + ["black.png,80,60,20"],       # fails while measuring, after the others
+        "extra field": good + ["img0.png,70,60,20,5"],
+    }
+    out, qa = tmp_path / "pred.json", tmp_path / "qa"
+    for name, lines in cases.items():
+        bad = tmp_path / "bad.csv"
+        bad.write_text("\n".join(lines) + "\n")
+        code = _run(["probe", "--folder", str(folder), "--circles", str(bad), "--fov", str(FOV_DEG),
+                     "--out", str(out), "--qa", str(qa)])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert code == 2 and len(err) == 1 and err[0].startswith("relight: error:"), (name, err)
+        assert f"row {len(lines)}" in err[0] or name == "unknown column", (name, err)
+        assert not out.exists() and not qa.exists(), name
+    # the QA folder may not replace the photographs' folder; single-image options do not mix in
+    for args in (["--qa", str(folder)], ["--chrome", str(folder / "img0.png")]):
+        assert _run(["probe", "--folder", str(folder), "--circles", str(csv_path), "--out", str(out), *args]) == 2
+        assert len(capsys.readouterr().err.strip().splitlines()) == 1
+        assert not out.exists() and sorted(os.listdir(folder)) == ["black.png", "img0.png", "img1.png", "img2.png"]

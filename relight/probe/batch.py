@@ -111,7 +111,7 @@ def run_batch(rows: list[BatchRow], base, qa_folder: str | None = None, progress
 
     from relight.probe.run import run_probe, write_qa
     entries, results = [], []
-    for row in tqdm(rows, desc="probe", unit="image", disable=not progress):
+    for row in tqdm(rows, desc="probe", unit="image", disable=None if progress else True):   # off when not a terminal
         cfg = dataclasses.replace(base, chrome=row.path, chrome_circle=row.chrome_circle, chrome_mask=None,
                                   diffuse=row.path if row.diffuse_circle else None,
                                   diffuse_circle=row.diffuse_circle, diffuse_mask=None)
