@@ -424,9 +424,11 @@ def pick_sphere(candidates: list[dict], kind: str, exclude: list[tuple] = ()) ->
         seen = ", ".join(f"({c['circle'][0]:.0f}, {c['circle'][1]:.0f}, r {c['circle'][2]:.0f})"
                          for c in candidates[:3]) or "none"
         raise ProbeError(f"no {kind} sphere found (circles seen: {seen}); give --{kind}-circle or --{kind}-mask")
-    if kind == "chrome":   # the clearest outline and a bright highlight (a chrome sphere's
-        # outline is often faint where it reflects what lies beside it)
-        return max(pool, key=lambda c: c["edge_support"] + 0.1 * min(math.log10(c["contrast"]), 3.0) / 3.0)
+    if kind == "chrome":   # the clearest outline, a bright highlight, a large sphere (a
+        # chrome sphere's outline is often faint where it reflects what lies beside it, and
+        # its reflections show smaller circles inside it)
+        return max(pool, key=lambda c: c["edge_support"] + 0.1 * min(math.log10(c["contrast"]), 3.0) / 3.0
+                   + 0.2 * math.log(max(c["circle"][2], 1.0) / 20.0))
     # the clearest outline, the smoothest shading, and (slightly) the larger sphere
     return max(pool, key=lambda c: c["edge_support"] - 0.5 * c["residual"]
                + 0.05 * math.log(max(c["circle"][2], 1.0) / 20.0))
