@@ -76,12 +76,15 @@ def test_wrong_circle_moves_at_most_its_tolerance_and_only_to_a_better_fit():
     sphere = _sphere_at(cam, 80.0, 60.0, 7.0)
     image = _quantise(_render(cam, sphere, [0.3, 0.4, 0.87]))
     cx, cy, r = detect.outline_circle(cam, sphere)
-    given = (cx + 2.0, cy, r)                       # 2 px off: the edges pull it back by 0.5 px only
+    given = (cx + 1.0, cy, r)                       # 1 px off: the edges pull it back by 0.5 px only
     refined, report = detect.constrained_refinement(image, cam, given, TOLERANCE_PX)
     out = detect.outline_circle(cam, refined)
     assert report["accepted"] and report["fit_refined_px"] < report["fit_given_px"]
     assert math.dist(out[:2], given[:2]) == pytest.approx(TOLERANCE_PX, abs=0.02)
     assert out[0] < given[0]                        # toward the truth
+    # stated as 1 px uncertain, it goes all the way back (within a tenth of a pixel)
+    refined, report = detect.constrained_refinement(image, cam, given, 1.0)
+    assert report["accepted"] and math.dist(detect.outline_circle(cam, refined)[:2], (cx, cy)) < 0.1
     # tolerance 0: the circle exactly as given, through the library call
     from relight.probe.run import locate_sphere
     sphere0, _, how, rep = locate_sphere(image, cam, "chrome", given, tolerance_px=0.0)
@@ -281,3 +284,35 @@ def test_batch_bad_rows_give_one_line_naming_the_row_and_write_nothing(photo_fol
         assert _run(["probe", "--folder", str(folder), "--circles", str(csv_path), "--out", str(out), *args]) == 2
         assert len(capsys.readouterr().err.strip().splitlines()) == 1
         assert not out.exists() and sorted(os.listdir(folder)) == ["black.png", "img0.png", "img1.png", "img2.png"]
+
+
+# ------------------------------------------------------------------ the harder probe set's truth
+def test_specular_point_bisects_eye_and_light():
+    from relight.verify.probe_scenes import specular_point
+    c, eye, light = np.array([0.3, -0.2, 0.1]), np.array([5.0, 1.0, 2.0]), np.array([-1.0, 2.0, 3.0])
+    p = specular_point(c, 0.1, eye, light)
+    n = (p - c) / 0.1
+    to_eye, to_light = (eye - p) / np.linalg.norm(eye - p), (light - p) / np.linalg.norm(light - p)
+    assert np.linalg.norm(p - c) == pytest.approx(0.1, rel=1e-12)
+    assert np.linalg.norm(n - (to_eye + to_light) / np.linalg.norm(to_eye + to_light)) < 1e-9
+
+
+def test_probe_scene_render_puts_the_highlight_where_the_truth_says():
+    # a 128 px scene of the harder set, rendered by Mitsuba: the highlight's centroid in
+    # linear radiance, reflected on the true sphere, points along the stated truth
+    from relight import backend
+    from relight.verify import probe_scenes as ps
+    backend.init()
+    d = ps.sample_room_scene(0, res=128)
+    t = d["truth"]
+    image = ps.render_room_mitsuba(d, spp=16).mean(-1)
+    cam = pg.Camera.from_fov(128, 128, t["fov_deg"])
+    sphere = ps.room_sphere(d, "chrome")
+    spot, _ = pg.predict_highlight(cam, sphere, t["to_light_camera"])
+    x, y = int(spot[0]), int(spot[1])
+    win = image[y - 3:y + 4, x - 3:x + 4]
+    win = np.where(win > 20 * np.median(image), win, 0.0)    # the light's reflection only
+    ys, xs = np.mgrid[y - 3:y + 4, x - 3:x + 4] + 0.5
+    centre = (float((win * xs).sum() / win.sum()), float((win * ys).sum() / win.sum()))
+    assert math.dist(centre, spot) < 0.5
+    assert t["chrome_circle"] == pytest.approx(list(detect.outline_circle(cam, sphere)), abs=1e-6)
