@@ -259,9 +259,10 @@ def write_qa(path: str, result: ProbeResult, title: str = "") -> None:
         tiles.append(tile)
     right = np.concatenate(tiles, 0)
     height = max(full.shape[0], right.shape[0])
-    panel = np.zeros((height + 90, full.shape[1] + right.shape[1] + 4, 3), np.uint8)
+    # wide enough for the caption lines (about 6 px a character at this font size)
+    panel = np.zeros((height + 90, max(full.shape[1] + right.shape[1] + 4, 800), 3), np.uint8)
     panel[:full.shape[0], :full.shape[1]] = full
-    panel[:right.shape[0], full.shape[1] + 4:] = right
+    panel[:right.shape[0], full.shape[1] + 4:full.shape[1] + 4 + right.shape[1]] = right
     e = result.entry
     d = e["to_light_camera"]
     if exposure > 1.5:
