@@ -254,10 +254,11 @@ def ship(run: str, train_data, model_path: str | None = None, models_dir: str = 
             "train_dataset": datasets[0], "train_datasets": datasets if len(datasets) > 1 else None,
             "settings": info["settings"], "run": run, "kappa_temperature": info.get("kappa_temperature"),
             "kappa_calibration": info.get("kappa_calibration"), "models_dir": models_dir,
-            "stages": earlier_stages(info["settings"])}
+            "stages": earlier_stages(info["settings"]), "ood": info.get("ood")}
     save_model(os.path.join(models_dir, os.path.basename(SHIPPED_MODEL)), model,
                {k: meta[k] for k in ("name", "best_epoch", "best_val_loss", "settings", "train_dataset",
-                                     "train_datasets", "kappa_temperature", "kappa_calibration", "stages") if meta[k] not in (None, [])},
+                                     "train_datasets", "kappa_temperature", "kappa_calibration", "stages", "ood")
+                if meta[k] not in (None, [])},
                dtype=SHIPPED_DTYPE)
     _copy(os.path.join(run, "log.csv"), os.path.join(models_dir, f"{SHIPPED_NAME}_log.csv"))
     write_json(os.path.join(models_dir, f"{SHIPPED_NAME}.json"), meta)
@@ -367,6 +368,19 @@ def mirror_line(mirror_eval_dir: str | None, test_data: str) -> str:
             f"{o['direction']['mean']:.2f}, colour {o['colour']['mean']:.2f}"
             + (f"; the 90% cones cover {100 * cones:.1f}%" if cones is not None else "")
             + f" (`relight evaluate --data {test_data} --split all --mirror-average --out REPORT`).\n\n")
+
+
+def ood_section(meta: dict) -> str:
+    """The card's section on the out-of-distribution flag (empty for a model without one)."""
+    ood = meta.get("ood")
+    if not ood:
+        return ""
+    flagged = ", ".join(f"{k} {100 * v:.1f}%" for k, v in (ood.get("flagged") or {}).items())
+    return (f"\n## Out-of-distribution flag\nA feature-space Mahalanobis detector ({ood['ood_dims']} principal "
+            f"components, threshold at the {100 * ood['quantile']:g}% quantile of {ood['n']} held-out renders; "
+            f"`relight/net/ood.py`): a flagged image is `ood: true` and its 90% cone is 180 degrees."
+            + (f" Flagged: {flagged}." if flagged else "") + (f"\n`{ood['command']}`" if ood.get("command") else "")
+            + "\n")
 
 
 def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_evals: dict | None = None,
@@ -534,7 +548,7 @@ Full report of `relight evaluate`:
 {priors}
 ## Where it falls short, and why
 {notes}
-
+{ood_section(meta)}
 ## Reproduce
 ```
 {"".join(cmd + chr(10) for cmd, _ in data_lines)}{test_cmd}

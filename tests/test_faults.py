@@ -747,7 +747,7 @@ RANGE_BAD = {
     "--torch-threads": ["0"], "--loss-weights": ["0,0,0", "-1,1,1", "1,1"], "--width": ["0"],
     "--max-minutes": ["-1"], "--camera-tilt": ["90", "-90", "1e308"], "--limit": ["0", "-1"],
     "--max-columns": ["0"], "--max-iters": ["0"], "--time-budget": ["0", "-5"],
-    "--kappa-weight": ["-1"], "--fov": ["0", "180", "-1"], "--focal-px": ["0", "-1"],
+    "--kappa-weight": ["-1"], "--camera-weight": ["-1", "1e7"], "--fov": ["0", "180", "-1"], "--focal-px": ["0", "-1"],
     "--target-rmse": ["0", "-0.1", "2"], "--scheduler": ["local:0", "local:-1", "local:100000"],
     "--object-parts": ["0", "33", "5-3", "0-4", "1-2-3", "-1", "2-"],
     "--chrome-circle": ["32,32,1e9", "32,32,0", "32,32,-1", "1e9,1,1", "1,2", "1,2,3,4"],

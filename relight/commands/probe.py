@@ -4,11 +4,14 @@ from __future__ import annotations
 __all__ = [
     "add_commands", "circle", "cmd_probe",
     "check_circle_fits",
+    "non_negative_px",
 ]
 
 import os
 
 from relight.commands.argtypes import camera_tilt, circle, field_of_view, positive_float
+
+CIRCLE_TOLERANCE_PX = 0.5   # relight.probe.run.CIRCLE_TOLERANCE_PX (not imported: keeps --help fast)
 
 
 def add_commands(sub) -> None:
@@ -18,14 +21,25 @@ def add_commands(sub) -> None:
                                    "the sphere's normal; perspective with --fov/--focal-px), colour "
                                    "(and a shading-based direction) from the diffuse sphere. Spheres "
                                    "are found automatically unless a circle or mask is given. Writes "
-                                   "a relight.predictions/v1 file (and a QA overlay with --qa).")
+                                   "a relight.predictions/v1 file (and a QA overlay with --qa). "
+                                   "With --folder and --circles, measures every image a CSV lists "
+                                   "(one predictions entry each).")
     p.add_argument("--chrome", help="image with a chrome (mirror) sphere")
     p.add_argument("--chrome-circle", type=circle, help="CX,CY,R: the chrome sphere's outline in pixels "
-                   "(x right, y down, origin top-left, pixel centres at +0.5); refined on the image")
+                   "(x right, y down, origin top-left, pixel centres at +0.5); refined on the image's "
+                   "edges only within --circle-tolerance")
     p.add_argument("--chrome-mask", help="mask image, white where the chrome sphere is")
     p.add_argument("--diffuse", help="image with a diffuse sphere (gives the colour); may be the chrome image")
     p.add_argument("--diffuse-circle", type=circle, help="CX,CY,R: the diffuse sphere's outline in pixels")
     p.add_argument("--diffuse-mask", help="mask image, white where the diffuse sphere is")
+    p.add_argument("--circle-tolerance", type=non_negative_px, default=CIRCLE_TOLERANCE_PX, metavar="PX",
+                   help="how far (pixels) a given circle's centre and radius may be moved to fit the "
+                   "image's edges; the move is kept only if the outline then fits better "
+                   f"(default {CIRCLE_TOLERANCE_PX}; 0: use the circle exactly as given)")
+    p.add_argument("--folder", help="batch: a folder of photographs, measured as listed by --circles")
+    p.add_argument("--circles", help="batch: CSV with a header row: image (file in --folder), optional "
+                   "chrome_cx,chrome_cy,chrome_r (empty: found automatically), diffuse_cx,diffuse_cy,"
+                   "diffuse_r (a diffuse sphere in the same image), id")
     proj = p.add_mutually_exclusive_group()
     proj.add_argument("--fov", type=field_of_view, help="perspective camera: horizontal field of view "
                       "(across the image width) in degrees")
@@ -38,7 +52,8 @@ def add_commands(sub) -> None:
                    help="PNG/TIFF pixels are linear (e.g. 16-bit measurement data); default: sRGB")
     p.add_argument("--id", default=None, help="prediction id (default: the image's file name)")
     p.add_argument("--out", required=True, help="predictions file to write")
-    p.add_argument("--qa", default=None, help="write a QA overlay PNG (outline, highlight, normal, direction)")
+    p.add_argument("--qa", default=None, help="write a QA overlay PNG (outline, highlight, normal, direction, "
+                   "error budget); with --folder, a folder of them (one per image)")
     p.set_defaults(func=cmd_probe)
 
 
@@ -64,10 +79,25 @@ def check_circle_fits(option: str, circle, image: str) -> None:
         raise ProbeError(f"{option} {cx:g},{cy:g},{r:g}: the circle misses {image} ({width}x{height} px)")
 
 
+def non_negative_px(text: str) -> float:
+    """A finite number of pixels >= 0."""
+    import argparse
+    import math
+    try:
+        v = float(text)
+    except ValueError:
+        v = float("nan")
+    if not math.isfinite(v) or v < 0:
+        raise argparse.ArgumentTypeError(f"expected a number of pixels >= 0, got {text!r}")
+    return v
+
+
 def cmd_probe(args) -> int:
     from relight.fileio import check_file_target, check_outputs
     from relight.predictions import write_predictions
     from relight.probe.run import ProbeConfig, run_probe, write_qa
+    if args.folder or args.circles:
+        return _cmd_batch(args)
     inputs = [args.chrome, args.chrome_mask, args.diffuse, args.diffuse_mask]
     check_file_target(args.out)   # a folder given for a file: said as such, before the input rule
     if args.qa:
@@ -78,7 +108,7 @@ def cmd_probe(args) -> int:
     cfg = ProbeConfig(chrome=args.chrome, chrome_circle=args.chrome_circle, chrome_mask=args.chrome_mask,
                       diffuse=args.diffuse, diffuse_circle=args.diffuse_circle, diffuse_mask=args.diffuse_mask,
                       fov_deg=args.fov, focal_px=args.focal_px, camera_tilt_deg=args.camera_tilt,
-                      linear=args.linear)
+                      linear=args.linear, circle_tolerance_px=args.circle_tolerance)
     result = run_probe(cfg)
     ident = args.id or os.path.splitext(os.path.basename(args.chrome or args.diffuse))[0]
     entry = {"id": ident, **result.entry}
@@ -94,4 +124,40 @@ def cmd_probe(args) -> int:
     print(f"{ident}: to_light_camera ({d[0]:+.3f}, {d[1]:+.3f}, {d[2]:+.3f}), pan_rel {entry['pan_deg']:.1f} deg, "
           f"tilt {entry['tilt_deg']:.1f} deg, rgb ({rgb[0]:.3f}, {rgb[1]:.3f}, {rgb[2]:.3f}) "
           f"[{entry['method']}{quality}] -> {args.out}")
+    return 0
+
+
+def _cmd_batch(args) -> int:
+    """``relight probe --folder DIR --circles CSV --out FILE [--qa FOLDER]``."""
+    from relight.errors import ProbeError
+    from relight.fileio import check_file_target, check_folder_target, check_outputs
+    from relight.predictions import write_predictions
+    from relight.probe.batch import read_circles, run_batch
+    from relight.probe.run import ProbeConfig
+    if not (args.folder and args.circles):
+        raise ProbeError("batch mode needs both --folder DIR and --circles CSV")
+    single = [n for n in ("chrome", "chrome_circle", "chrome_mask", "diffuse", "diffuse_circle", "diffuse_mask", "id")
+              if getattr(args, n) is not None]
+    if single:
+        raise ProbeError(f"--{single[0].replace('_', '-')} is for one image; with --folder the CSV gives the circles")
+    check_outputs([args.out], [args.circles, args.folder])
+    check_file_target(args.out)
+    if args.qa:     # replaced as a whole: it must hold no input (nor the predictions file)
+        check_outputs([args.qa], [args.circles, args.folder, args.out], replaces_folder=True)
+        check_folder_target(args.qa)
+    rows = read_circles(args.circles, args.folder)
+    base = ProbeConfig(chrome=rows[0].path, fov_deg=args.fov, focal_px=args.focal_px,
+                       camera_tilt_deg=args.camera_tilt, linear=args.linear,
+                       circle_tolerance_px=args.circle_tolerance)
+    entries = run_batch(rows, base, args.qa)
+    meta = {"camera_tilt_deg": args.camera_tilt if args.camera_tilt is not None else 0.0,
+            "settings": {k: v for k, v in vars(args).items() if k != "func"}}
+    if args.camera_tilt is None:
+        meta["camera_tilt_note"] = "no --camera-tilt given: pan_deg/tilt_deg assume a level camera (tilt 0)"
+    write_predictions(args.out, entries, **meta)
+    for e in entries:
+        d = e["to_light_camera"]
+        print(f"{e['id']}: to_light_camera ({d[0]:+.3f}, {d[1]:+.3f}, {d[2]:+.3f}) "
+              f"[{e['method']}, ~{e.get('quality_deg', float('nan')):.1f} deg]")
+    print(f"{len(entries)} images -> {args.out}" + (f" (QA overlays in {args.qa})" if args.qa else ""))
     return 0

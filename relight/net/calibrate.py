@@ -257,5 +257,6 @@ def calibrate_model_file(model_path: str | os.PathLike, data_dir, out_path: str 
         dataset = LightDataset(dataset_folders(data_dir), cfg.split, model.config.res, cache=False)
         model, report["ood"] = fit_ood(model, dataset.batch(range(len(dataset))))
         info["ood"] = report["ood"] | {"data_dir": folders_record(dataset_folders(data_dir)), "split": cfg.split}
-    save_model(out_path, model, info)
+    from relight.net.io import stored_float_dtype
+    save_model(out_path, model, info, dtype=stored_float_dtype(model_path))   # the precision it came in
     return report

@@ -10,7 +10,7 @@ tensor names or shapes -- raises :class:`ModelFileError` with a one-line reason.
 """
 from __future__ import annotations
 
-__all__ = [
+__all__ = ["stored_float_dtype", 
     "MODEL_FORMAT", "MODELS_DIR", "SHIPPED_NAME", "SHIPPED_MODEL", "save_model", "read_model_file",
     "read_model_header", "load_model_file",
 ]
@@ -38,7 +38,9 @@ def save_model(path: str | os.PathLike, model: LightNet, info: dict | None = Non
     if model.folded:
         raise ValueError("cannot save a network with folded batch norms (inference only); "
                          "save the one load_model_file returns")
-    state = {k: v.detach().cpu().to(dtype if dtype is not None and v.is_floating_point() else v.dtype)
+    # the out-of-distribution statistics stay float32 (a half-precision threshold moves the flag)
+    state = {k: v.detach().cpu().to(dtype if dtype is not None and v.is_floating_point()
+                                    and not k.startswith("ood_") else v.dtype)
              .contiguous() for k, v in model.state_dict().items()}
     meta = {"format": MODEL_FORMAT, "arch": model.config.arch_name,
             "config": json.dumps(model.config.to_dict()), "info": json.dumps(info or {})}
@@ -117,3 +119,18 @@ def load_model_file(path: str | os.PathLike) -> LightNet:
     model.load_state_dict(state)
     model.info = info
     return model.eval()
+
+
+def stored_float_dtype(path: str | os.PathLike) -> torch.dtype:
+    """The floating-point type a model file stores its weights in (float16 for a shipped file)."""
+    from safetensors import safe_open
+    with safe_open(_model_path(path), framework="pt") as f:
+        for key in f.keys():
+            if key.startswith("ood_"):
+                continue
+            t = f.get_slice(key)
+            dtype = {"F16": torch.float16, "BF16": torch.bfloat16, "F32": torch.float32, "F64": torch.float64}.get(
+                t.get_dtype())
+            if dtype is not None:
+                return dtype
+    return torch.float32

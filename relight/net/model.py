@@ -351,7 +351,11 @@ class LightNet(nn.Module):
         """``(y (N, 7), kappa (N,) or None, camera (N, 2) or None)``: :meth:`forward_with_kappa`
         and, with a camera head, ``(sin tilt_c, cos tilt_c)`` of the predicted camera tilt
         (unnormalised; :func:`camera_tilt_deg` turns it into degrees)."""
-        e = self.encode(x)
+        return self.heads(self.encode(x), calibrated)
+
+    def heads(self, e: torch.Tensor, calibrated: bool = True):
+        """:meth:`forward_full`'s outputs from embeddings ``e`` ``(N, embed)`` (:meth:`encode`),
+        for a caller that also needs the embedding (the out-of-distribution flag)."""
         y = self._light(e)
         kappa = None
         if self.config.kappa_head:

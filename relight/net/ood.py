@@ -98,12 +98,14 @@ def fit_ood(model, x: torch.Tensor, dims: int = OOD_DIMS, quantile: float = OOD_
     return grown.eval(), {"ood_dims": dims, "ood_threshold": threshold, "n": n, "quantile": quantile}
 
 
-def ood_fields(model, x: torch.Tensor) -> list[dict] | None:
+def ood_fields(model, x: torch.Tensor, embedding: torch.Tensor | None = None) -> list[dict] | None:
     """Per input: ``ood`` (bool), ``ood_score``; for a flagged image also ``cone90_deg`` =
-    :data:`OOD_CONE_DEG`. None for a model without a fitted detector."""
-    scores = ood_scores(model, x)
-    if scores is None:
+    :data:`OOD_CONE_DEG`. None for a model without a fitted detector. ``embedding``: the
+    inputs' embeddings when the caller has them (no second pass through the encoder)."""
+    net = _net(model)
+    if not getattr(net.config, "ood_dims", 0):
         return None
+    scores = _scores(net, embedding if embedding is not None else embeddings(net, x))
     threshold = float(_net(model).ood_threshold)
     out = []
     for s in scores:

@@ -93,15 +93,22 @@ def _predict_inputs(model, inputs: list[torch.Tensor], camera_tilt_deg, batch_si
         if not np.all(np.isfinite(tilts)):
             raise ValueError("camera tilts must be finite degrees")
     model.eval()
+    with_ood = bool(getattr(getattr(model, "config", None), "ood_dims", 0))
+    one_pass = with_ood and hasattr(model, "heads")   # a plain network: the embedding serves both
     ys, kappas, cameras, embeds = [], [], [], []
     with torch.no_grad():
         for s in range(0, len(inputs), batch_size):
             batch = torch.stack(inputs[s:s + batch_size])
-            if has_camera:
+            if one_pass:
+                e = model.encode(batch)
+                embeds.append(e)
+                y, kappa, camera = model.heads(e)
+            elif has_camera:
                 y, kappa, camera = model.forward_full(batch)
-                cameras.append(head_tilt_deg(camera).double().numpy())
             else:
-                y, kappa = model.forward_with_kappa(batch)
+                (y, kappa), camera = model.forward_with_kappa(batch), None
+            if camera is not None:
+                cameras.append(head_tilt_deg(camera).double().numpy())
             ys.append(y.double().numpy())
             if kappa is not None:
                 kappas.append(kappa.double().numpy())
@@ -119,7 +126,10 @@ def _predict_inputs(model, inputs: list[torch.Tensor], camera_tilt_deg, batch_si
     for i, grey in enumerate(achromatic or []):
         if grey:
             extras[i]["colour_reliable"] = False
-    oods = ood_fields(model, torch.stack(inputs)) if len(inputs) else None
+    oods = None
+    if with_ood:
+        with torch.no_grad():
+            oods = ood_fields(model, torch.stack(inputs), torch.cat(embeds) if one_pass else None)
     out = []
     for i in range(len(inputs)):
         tilt_c = float(np.clip(tilts[i], -89.0, 89.0))

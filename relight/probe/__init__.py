@@ -9,6 +9,10 @@ a chrome sphere's highlight gives the direction, a gray sphere's shading the col
 * :mod:`relight.probe.detect`: finding the spheres (circle detection, outline
   refinement, chrome or diffuse).
 * :mod:`relight.probe.run`: ``relight probe`` as one library call, with the QA overlay.
+* :mod:`relight.probe.batch`: a folder of photographs with each image's circles from a CSV.
+
+The study of the procedure on harder images (small spheres, clutter, two renderers, real
+photographs) is docs/probe.md.
 """
 
 __all__ = [

@@ -20,10 +20,11 @@ from __future__ import annotations
 __all__ = [
     "EDGE_SIGMA_PX", "EDGE_ANGLES", "EDGE_MIN_FRACTION", "REJECT_ROUNDS", "REJECT_SIGMAS", "REJECT_MIN_PX",
     "EDGE_INLIER_PX", "SUPPORT_BAND_FRACTION", "MIN_EDGE_SUPPORT", "MIN_RADIUS_FRACTION",
-    "MAX_RADIUS_FRACTION", "MAX_CANDIDATES", "CHROME_MIN_CONTRAST", "CHROME_MIN_BLOB_PX",
+    "MAX_RADIUS_FRACTION", "MAX_CANDIDATES", "CHROME_MIN_CONTRAST",
     "CHROME_MAX_BLOB_FRACTION", "CHROME_MIN_EXCESS", "DIFFUSE_MAX_RESIDUAL", "TRIM_FRACTION",
     "read_probe_image", "load_mask", "edge_points", "refine_sphere", "sphere_features", "hough_circles",
     "find_spheres", "is_chrome", "is_diffuse", "pick_sphere",
+    "outline_fit_px", "constrained_refinement",
 ]
 
 import math
@@ -44,14 +45,19 @@ REJECT_SIGMAS = 1.5
 REJECT_MIN_PX = 0.75
 EDGE_INLIER_PX = 1.0           # edge points this close to the fitted outline support it
 SUPPORT_BAND_FRACTION = 0.25   # ... when they are the strongest edge within 25% of the radius
+ACCEPT_FIT_RATIO = 0.6        # a given circle's refinement is kept only when it cuts the edge misfit by 40%
 MIN_EDGE_SUPPORT = 0.2         # share of the outline where it is the strongest edge, to call it a sphere
-MIN_RADIUS_FRACTION = 0.02     # detection radii, as fractions of the image's shorter side
+MIN_RADIUS_PX = 7              # detection radii: at least 7 px (spheres down to 10 px are found) ...
+MIN_RADIUS_FRACTION = 0.015    # ... and 1.5% of the image's shorter side
 MAX_RADIUS_FRACTION = 0.45
-MAX_CANDIDATES = 30
+MAX_CANDIDATES = 60
+RADIUS_HYPOTHESES = (1.0, 0.85, 1.15)  # a Hough circle's radius is often off on a chrome sphere's faint rim
 CHROME_MIN_CONTRAST = 4.0      # chrome: brightest / median sphere pixel at least this,
-CHROME_MIN_BLOB_PX = 6         # in a highlight of at least 6 pixels (not a hot pixel)
-CHROME_MAX_BLOB_FRACTION = 0.05  # covering at most 5% of the sphere (not a lit side)
-CHROME_MIN_EXCESS = 0.3        # and largely above what one light on a diffuse sphere gives
+CHROME_MAX_BLOB_FRACTION = 0.15  # in a bright region covering at most 15% of the sphere (not a lit side),
+CHROME_MIN_EXCESS = 0.15       # above what one light on a diffuse sphere gives,
+CHROME_MIN_RESIDUAL = 0.25     # and no smooth shading model fits it (it mirrors its surroundings: a
+                               # diffuse ball with a hot pixel fits within 0.2; on the probe set
+                               # chrome spheres measure 0.29-1.9, gray and coloured balls 0.02-0.48)
 DIFFUSE_MAX_RESIDUAL = 0.3     # diffuse: a shading model fits within 30% rms
 TRIM_FRACTION = 0.01           # ... leaving out the worst 1% of pixels (glints, hot pixels)
 
@@ -187,6 +193,51 @@ def refine_sphere(image: np.ndarray, camera: Camera, guess: Sphere, smoothed: np
     return sphere, support
 
 
+def outline_fit_px(smoothed: np.ndarray, camera: Camera, sphere: Sphere, x, y) -> float:
+    """How well edge points ``(x, y)`` fit ``sphere``'s outline: the mean of
+    ``min(|distance|, 1.5)`` pixels (a robust misfit; far points count alike)."""
+    return float(np.mean(np.minimum(np.abs(_outline_distance(camera, sphere, x, y)), 1.5)))
+
+
+def constrained_refinement(image: np.ndarray, camera: Camera, circle, tolerance_px: float
+                           ) -> tuple[Sphere, dict]:
+    """Refine a given circle ``(cx, cy, r)`` on the image's edges within ``tolerance_px``:
+    the edge fit (:func:`refine_sphere`, started from the circle) is pulled back so that
+    its centre moves and its radius changes by at most ``tolerance_px``, and it is kept
+    only when the outline's misfit to the edges near the circle
+    (:func:`outline_fit_px`) is smaller than the given circle's. Returns the sphere and
+    a report: ``tolerance_px``, ``accepted``, ``moved_px``, ``radius_change_px``,
+    ``fit_given_px``, ``fit_refined_px`` (or ``reason`` when no fit was possible)."""
+    guess = sphere_from_circle(camera, *circle)
+    report = {"tolerance_px": float(tolerance_px), "accepted": False}
+    smoothed = _edge_image(image)
+    try:
+        fitted, _ = refine_sphere(image, camera, guess, smoothed, first_band_px=max(2.0, tolerance_px + 1.5))
+    except ProbeError as exc:
+        report["reason"] = str(exc)
+        return guess, report
+    cx, cy, r = outline_circle(camera, fitted)
+    dx, dy, dr = cx - circle[0], cy - circle[1], r - circle[2]
+    shift = math.hypot(dx, dy)
+    if shift > tolerance_px:
+        dx, dy = dx * tolerance_px / shift, dy * tolerance_px / shift
+    dr = float(np.clip(dr, -tolerance_px, tolerance_px))
+    candidate = sphere_from_circle(camera, circle[0] + dx, circle[1] + dy, circle[2] + dr)
+    x, y, _ = edge_points(smoothed, camera, guess, tolerance_px + 1.5, prior=False)
+    if x.size < 0.2 * EDGE_ANGLES:
+        report["reason"] = "too little of the outline is visible as an edge"
+        return guess, report
+    given_fit = outline_fit_px(smoothed, camera, guess, x, y)
+    refined_fit = outline_fit_px(smoothed, camera, candidate, x, y)
+    report.update(moved_px=round(math.hypot(dx, dy), 4), radius_change_px=round(dr, 4),
+                  fit_given_px=round(given_fit, 4), fit_refined_px=round(refined_fit, 4))
+    if refined_fit < ACCEPT_FIT_RATIO * given_fit:
+        report["accepted"] = True
+        rms = float(np.sqrt(np.mean(np.minimum(_outline_distance(camera, candidate, x, y) ** 2, 2.25))))
+        return Sphere(candidate.centre, candidate.radius, rms, int(x.size)), report
+    return guess, report
+
+
 def _outline_distance(camera: Camera, sphere: Sphere, x, y) -> np.ndarray:
     """Signed radial distance (pixels, + outside) of points from the sphere's outline."""
     cx, cy, _ = outline_circle(camera, sphere)
@@ -276,13 +327,16 @@ def hough_circles(image: np.ndarray) -> list[tuple[float, float, float]]:
     gray = np.round(_encoded(img * _exposure(img)) @ np.array([0.299, 0.587, 0.114]) * 255).astype(np.uint8)
     h, w = gray.shape
     short = min(h, w)
-    rmin, rmax = max(6, int(MIN_RADIUS_FRACTION * short)), int(MAX_RADIUS_FRACTION * short)
+    rmin, rmax = max(MIN_RADIUS_PX, int(MIN_RADIUS_FRACTION * short)), int(MAX_RADIUS_FRACTION * short)
     found = []
     alt = cv2.HoughCircles(cv2.GaussianBlur(gray, (0, 0), 1.5), cv2.HOUGH_GRADIENT_ALT, dp=1.5,
                            minDist=rmin, param1=100, param2=0.7, minRadius=rmin, maxRadius=rmax)
     classic = cv2.HoughCircles(cv2.GaussianBlur(gray, (0, 0), 2.5), cv2.HOUGH_GRADIENT, dp=1,
                                minDist=rmin, param1=50, param2=20, minRadius=rmin, maxRadius=rmax)
-    for circles in (alt, classic):
+    # small spheres: a finer blur and fewer votes (a 10 px circle has few edge pixels)
+    fine = cv2.HoughCircles(cv2.GaussianBlur(gray, (0, 0), 1.2), cv2.HOUGH_GRADIENT, dp=1,
+                            minDist=rmin, param1=60, param2=14, minRadius=rmin, maxRadius=min(rmax, 4 * rmin + 20))
+    for circles in (alt, classic, fine):
         if circles is None:
             continue
         for x, y, r in circles[0]:
@@ -307,40 +361,62 @@ def find_spheres(image: np.ndarray, camera: Camera) -> list[dict]:
         if any(math.hypot(cx - c[0], cy - c[1]) < 0.05 * r and abs(r - c[2]) < 0.05 * r for c in refined):
             continue
         refined.append((cx, cy, r))
-        try:
-            guess = sphere_from_circle(camera, cx, cy, r)
-            # cheap screen: is the strongest nearby edge on this circle often enough?
-            x, y, _ = edge_points(smoothed, camera, guess, max(4.0, SUPPORT_BAND_FRACTION * r), prior=False)
-            near = np.abs(_outline_distance(camera, guess, x, y)) <= max(2.0, 0.05 * r)
-            if near.sum() < MIN_EDGE_SUPPORT * EDGE_ANGLES:
+        # cheap screen: is the strongest nearby edge on this circle often enough? The
+        # circle is tried as proposed and, when it screens better, at a slightly smaller or
+        # larger radius (a chrome sphere's rim is faint where it mirrors its surroundings,
+        # so the proposed radius is often off); both are refined, the better supported stays
+        screened = []
+        for k in RADIUS_HYPOTHESES:
+            try:
+                trial = sphere_from_circle(camera, cx, cy, r * k)
+            except ProbeError:
                 continue
-            sphere, support = refine_sphere(image, camera, guess, smoothed, first_band_px=max(3.0, 0.12 * r))
-        except ProbeError:
+            x, y, _ = edge_points(smoothed, camera, trial, max(4.0, SUPPORT_BAND_FRACTION * r * k), prior=False)
+            screened.append((int((np.abs(_outline_distance(camera, trial, x, y)) <= max(2.0, 0.05 * r * k)).sum()),
+                             trial, r * k))
+        if not screened:
             continue
-        if support < MIN_EDGE_SUPPORT:
-            continue
-        circle = outline_circle(camera, sphere)
-        refined.append(circle)
-        same = [c for c in out if math.hypot(circle[0] - c["circle"][0], circle[1] - c["circle"][1])
-                < 0.5 * max(circle[2], c["circle"][2]) and 0.7 < circle[2] / c["circle"][2] < 1.4]
-        if any(c["edge_support"] >= support for c in same):
-            continue
-        out = [c for c in out if not any(c is d for d in same)]
-        f = sphere_features(image, camera, sphere)
-        out.append({"sphere": sphere, "circle": circle, "edge_support": support, **f,
-                    "chrome": is_chrome(f), "diffuse": is_diffuse(f)})
+        trials = [screened[0]]
+        alt = max(screened[1:], key=lambda t: t[0], default=None)
+        if alt is not None and alt[0] > 1.1 * screened[0][0]:
+            trials.append(alt)
+        for near, guess, rk in trials:
+            if near < MIN_EDGE_SUPPORT * EDGE_ANGLES:
+                continue
+            try:
+                sphere, support = refine_sphere(image, camera, guess, smoothed, first_band_px=max(3.0, 0.12 * rk))
+            except ProbeError:
+                continue
+            if support < MIN_EDGE_SUPPORT:
+                continue
+            circle = outline_circle(camera, sphere)
+            refined.append(circle)
+            same = [c for c in out if math.hypot(circle[0] - c["circle"][0], circle[1] - c["circle"][1])
+                    < 0.5 * max(circle[2], c["circle"][2]) and 0.7 < circle[2] / c["circle"][2] < 1.4]
+            if any(c["edge_support"] >= support for c in same):
+                continue
+            out = [c for c in out if not any(c is d for d in same)]
+            f = sphere_features(image, camera, sphere)
+            out.append({"sphere": sphere, "circle": circle, "edge_support": support, **f,
+                        "chrome": is_chrome(f), "diffuse": is_diffuse(f)})
     # a circle inside a better supported one is a highlight or a reflection on that sphere
+    # (mostly inside: the smaller circle reaches at most 10% of the larger radius beyond it,
+    # and is not clearly better supported)
     out = [c for c in out if not any(
-        o is not c and math.hypot(c["circle"][0] - o["circle"][0], c["circle"][1] - o["circle"][1])
-        + c["circle"][2] < o["circle"][2] * 1.02 and o["edge_support"] >= c["edge_support"] for o in out)]
+        o is not c and c["circle"][2] < o["circle"][2]
+        and math.hypot(c["circle"][0] - o["circle"][0], c["circle"][1] - o["circle"][1])
+        + c["circle"][2] < o["circle"][2] * 1.1 and o["edge_support"] >= c["edge_support"] - 0.02 for o in out)]
     out.sort(key=lambda c: -c["edge_support"])
     return out
 
 
 def is_chrome(f: dict) -> bool:
-    """A chrome sphere shows a compact highlight much brighter than the rest of it."""
-    return (f["contrast"] >= CHROME_MIN_CONTRAST and f["blob_pixels"] >= CHROME_MIN_BLOB_PX
-            and f["blob_fraction"] <= CHROME_MAX_BLOB_FRACTION and f["blob_excess"] >= CHROME_MIN_EXCESS)
+    """A chrome sphere shows a compact highlight much brighter than the rest of it (a
+    single pixel will do: a 10 px sphere's highlight is that small), and its pixels fit
+    no smooth shading."""
+    return (f["contrast"] >= CHROME_MIN_CONTRAST and f["blob_pixels"] >= 1
+            and f["blob_fraction"] <= CHROME_MAX_BLOB_FRACTION and f["blob_excess"] >= CHROME_MIN_EXCESS
+            and f["residual"] >= CHROME_MIN_RESIDUAL)
 
 
 def is_diffuse(f: dict) -> bool:
@@ -359,7 +435,8 @@ def pick_sphere(candidates: list[dict], kind: str, exclude: list[tuple] = ()) ->
                          for c in candidates[:3]) or "none"
         raise ProbeError(f"no {kind} sphere found (circles seen: {seen}); give --{kind}-circle or --{kind}-mask")
     if kind == "chrome":   # the clearest outline, a bright highlight, a large sphere (a
-        # chrome sphere's outline is often faint where it reflects what lies beside it)
+        # chrome sphere's outline is often faint where it reflects what lies beside it, and
+        # its reflections show smaller circles inside it)
         return max(pool, key=lambda c: c["edge_support"] + 0.1 * min(math.log10(c["contrast"]), 3.0) / 3.0
                    + 0.2 * math.log(max(c["circle"][2], 1.0) / 20.0))
     # the clearest outline, the smoothest shading, and (slightly) the larger sphere

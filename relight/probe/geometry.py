@@ -32,6 +32,7 @@ __all__ = [
     "mask_outline_points", "sphere_from_mask", "outline_circle", "outline_polygon", "bounding_box", "surface",
     "reflected_direction", "predict_highlight", "Highlight", "sphere_pixels", "locate_highlight",
     "diffuse_light",
+    "error_budget",
 ]
 
 import math
@@ -53,6 +54,10 @@ LIT_FRACTION = (0.25, 0.95)    # diffuse pixels used for the shading fit, as fra
 DIFFUSE_RIM_FRACTION = 0.9     # diffuse fit: normals within 0.9 of the radius (as relight.probe.ortho)
 ORTHO_DEPTH = 1.0e4            # z of an orthographic sphere's centre (any value works)
 OUTLINE_LOSS_SCALE_PX = 0.5    # robust outline fit: residuals beyond ~0.5 px count less
+RIM_BLOB_ANGLE_DEG = 65.0      # a blob whose normals lie beyond this from the view ray is grazing
+SMALL_HIGHLIGHT_PX = 12        # a highlight of at most this many pixels: measured in a soft window
+WINDOW_MARGIN_PX = 1.5         # a compact highlight's centroid window: its core's radius plus 1.5 px (lens blur)
+AMBIGUITY_MARGIN = 0.5         # two highlight candidates within this score of each other: ambiguous
 
 
 @dataclass(frozen=True)
@@ -341,15 +346,15 @@ def _solid_angle_weights(camera: Camera, sphere: Sphere, xs, ys) -> np.ndarray:
 
 
 def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np.ndarray | None = None,
-                     clip_level: float | None = None) -> Highlight:
+                     clip_level: float | None = None, expect_to_light=None,
+                     circle_px: float | None = None) -> Highlight:
     """Direction toward the light from a chrome (mirror) sphere's highlight.
 
-    The light's core is the largest connected set of pixels within :data:`TIE_FRACTION`
-    of the brightest usable pixel (the peak pixel itself when nothing clips) spanning at
-    most :data:`MAX_LIGHT_SPREAD_DEG` of reflected directions (plus three pixels' worth,
-    as one pixel spans more directions near the rim): the brighter a source, the
-    wider its clipped blob, while a hot pixel or a firefly stays tiny and a window or a lit
-    wall spreads wider. The highlight is the connected region around that core of pixels
+    The light's core is the connected set of pixels within :data:`TIE_FRACTION` of the
+    brightest usable pixel (the peak pixel itself when nothing clips) that best fits a
+    small light (see "Candidates" below): compact (spanning at most
+    :data:`MAX_LIGHT_SPREAD_DEG` of reflected directions plus three pixels' worth, as one
+    pixel spans more directions near the rim), round, not pressed against the rim. The highlight is the connected region around that core of pixels
     at least :data:`HIGHLIGHT_FRACTION` of the peak, grown by two pixels; when more than
     :data:`MERGED_FRACTION` of that region lies beyond the core grown by
     :data:`CORE_RIM_PX` (the light touches bright surroundings, or the lobe is broad),
@@ -364,6 +369,17 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
         image: linear RGB ``(H, W, 3)`` or luminance ``(H, W)``.
         clip_level: the value at which the sensor clips (1 for PNG/JPEG), if any; only
             used to report ``clipped`` in the quality figures.
+        expect_to_light: a rough direction toward the light (a diffuse sphere's
+            shading), used to choose among candidate blobs.
+        circle_px: the outline's position uncertainty in pixels (a given circle's
+            tolerance) for the error budget; default: from the outline fit.
+
+    Candidates: several blobs may be equally bright (clipped in 8-bit: the light and a
+    grazing reflection of a lit floor or wall). Each is scored by what a small light
+    predicts (:func:`_core_scores`); when the runner-up comes within
+    :data:`AMBIGUITY_MARGIN` of the best, ``quality`` reports ``ambiguity`` (0-1), the
+    other candidate's direction and pixel, and the error budget widens by the angle
+    between the two times the ambiguity.
     """
     lum = _luminance(image)
     (x0, y0, x1, y1), usable, s = sphere_pixels(camera, sphere, mask)
@@ -377,19 +393,22 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
         raise ProbeError("no highlight on the chrome sphere (it is black or evenly lit)")
     labels, count = ndimage.label(usable & (crop >= HIGHLIGHT_FRACTION * peak), np.ones((3, 3)))
     refl = s["reflect"]
-    # the brightest cores (clipped blobs, or the peak pixel of an unclipped image)
+    # the brightest cores (clipped blobs, or the peak pixel of an unclipped image), each
+    # scored by what a small light predicts (:func:`_core_scores`)
     cores, n_cores = ndimage.label(usable & (crop >= TIE_FRACTION * peak), np.ones((3, 3)))
     core_index = np.arange(1, n_cores + 1)
-    core_sizes = np.asarray(ndimage.sum(np.ones_like(crop), cores, core_index))
-    core_spreads = np.array([_spread_deg(refl[cores == k]) for k in core_index])
-    # one pixel spans more directions near the rim: allow three pixels' worth on top
     cys, cxs = np.nonzero(cores > 0)
     footprint_deg = math.degrees(math.sqrt(float(np.median(_solid_angle_weights(
         camera, sphere, cxs + x0 + 0.5, cys + y0 + 0.5)))))
     spread_limit = MAX_LIGHT_SPREAD_DEG + 3.0 * footprint_deg
-    pool = core_spreads <= spread_limit
-    pool = pool if pool.any() else np.ones_like(pool)
-    best_core = cores == int(core_index[pool][np.argmax(core_sizes[pool])])
+    scores, core_dirs = _core_scores(camera, sphere, crop, cores, core_index, s, (x0, y0), spread_limit,
+                                     expect_to_light)
+    order = np.argsort(-scores)
+    best_core = cores == int(core_index[order[0]])
+    rival = None
+    if len(order) > 1 and scores[order[0]] - scores[order[1]] < AMBIGUITY_MARGIN:
+        rival = (float(1.0 - (scores[order[0]] - scores[order[1]]) / AMBIGUITY_MARGIN), core_dirs[order[1]],
+                 int(core_index[order[1]]))
     best = int(np.max(labels[best_core]))
     region = labels == best
     square = np.ones((3, 3))
@@ -405,14 +424,6 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
         grown = ndimage.binary_dilation(region, square, iterations=2) & usable
         ring = ndimage.binary_dilation(grown, square, iterations=2) & usable & ~grown & (labels == 0)
         background = float(np.median(crop[ring])) if ring.sum() >= 4 else floor
-    # ambiguity: how close another candidate comes, in brightness above the threshold
-    # times size (up to the chosen one's): a rival light 1, a dimmer window or a speck less
-    index = np.arange(1, count + 1)
-    comp_peaks = np.asarray(ndimage.maximum(crop, labels, index))
-    comp_sizes = np.bincount(labels.ravel(), minlength=count + 1)[1:]
-    rivals = index != best
-    others = ((comp_peaks[rivals] - HIGHLIGHT_FRACTION * peak) / ((1.0 - HIGHLIGHT_FRACTION) * peak)
-              * np.minimum(comp_sizes[rivals] / max(int(comp_sizes[best - 1]), 1), 1.0))
     weights = np.clip(crop - background, 0.0, None) * grown
     ys, xs = np.nonzero(weights > 0)
     w = weights[ys, xs] * _solid_angle_weights(camera, sphere, xs + x0 + 0.5, ys + y0 + 0.5)
@@ -424,6 +435,19 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     px = float(np.average(xs + x0 + 0.5, weights=weights[ys, xs]))
     py = float(np.average(ys + y0 + 0.5, weights=weights[ys, xs]))
     compact = _spread_deg(refl[region]) <= spread_limit
+    if compact and region.sum() <= SMALL_HIGHLIGHT_PX:
+        # the core's own centre, then a soft window around it above the level of its
+        # surroundings (the 90th percentile of a ring just outside the window: a lit
+        # floor's reflection beside a small clipped highlight must not pull it)
+        cy_, cx_ = np.nonzero(best_core)
+        start = (float(cx_.mean()) + 0.5, float(cy_.mean()) + 0.5)
+        radius = math.sqrt(best_core.sum() / math.pi) + WINDOW_MARGIN_PX
+        yy, xx = np.mgrid[0:crop.shape[0], 0:crop.shape[1]] + 0.5
+        dist = np.hypot(xx - start[0], yy - start[1])
+        ring = usable & (dist > radius + 1.0) & (dist <= radius + 3.0)
+        level = float(np.percentile(crop[ring], 90)) if ring.sum() >= 4 else background
+        px, py = _soft_window_centroid(crop, usable, start, level, radius)
+        px, py = px + x0, py + y0
     at_centroid = surface(camera, sphere, np.array([px]), np.array([py]))
     if compact and at_centroid["hit"][0]:
         # a small highlight: the lens blurs it symmetrically in the image, not in directions
@@ -439,10 +463,87 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
         "background": background,
         "clipped": bool(clipped),
         "view_angle_deg": math.degrees(math.acos(min(max(cos_view, -1.0), 1.0))),
-        "ambiguity": float(min(others.max(), 1.0)) if others.size else 0.0,
+        "ambiguity": rival[0] if rival else 0.0,
+        "candidates": int(n_cores),
     }
-    quality["uncertainty_deg"] = _uncertainty_deg(camera, sphere, quality)
+    if rival is not None:
+        ry, rx = np.nonzero(cores == rival[2])
+        quality["alternative_to_light"] = [float(v) for v in rival[1]]
+        quality["alternative_px"] = [float(rx.mean() + x0 + 0.5), float(ry.mean() + y0 + 0.5)]
+        quality["alternative_separation_deg"] = math.degrees(math.acos(float(np.clip(rival[1] @ to_light, -1, 1))))
+    budget = error_budget(camera, sphere, quality, circle_px)
+    quality["error_budget_deg"] = {k: round(v, 3) for k, v in budget.items()}
+    quality["uncertainty_deg"] = budget["total_deg"]
     return Highlight(to_light, (px, py), quality)
+
+
+def _soft_window_centroid(crop: np.ndarray, usable: np.ndarray, start: tuple[float, float], background: float,
+                          radius: float, rounds: int = 6) -> tuple[float, float]:
+    """Sub-pixel centre ``(x, y)`` (crop pixel coordinates, centres at +0.5) of a compact
+    highlight: the centroid of intensity above ``background`` within a round window of
+    ``radius`` pixels whose edge tapers linearly over two pixels, re-centred on the
+    centroid until it settles. A pixel entering or leaving the window does so with a
+    weight near zero, so the estimate follows an image shift smoothly (a threshold
+    region would jump by whole pixels)."""
+    h, w = crop.shape
+    ys, xs = np.mgrid[0:h, 0:w] + 0.5
+    signal = np.clip(crop - background, 0.0, None) * usable
+    cx, cy = start
+    for _ in range(rounds):
+        taper = np.clip(radius + 1.0 - np.hypot(xs - cx, ys - cy), 0.0, 2.0) / 2.0
+        weights = signal * taper
+        total = weights.sum()
+        if not total > 0:
+            break
+        nx, ny = float((weights * xs).sum() / total), float((weights * ys).sum() / total)
+        done = math.hypot(nx - cx, ny - cy) < 1e-4
+        cx, cy = nx, ny
+        if done:
+            break
+    return cx, cy
+
+
+def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.ndarray, index: np.ndarray,
+                 s: dict, origin: tuple[int, int], spread_limit: float, expect_to_light=None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """How much each brightest blob (``cores`` labels ``index``) looks like a small
+    light's highlight, and its reflected direction (intensity-weighted mean).
+
+    A small light's highlight is compact (spread of reflected directions within
+    ``spread_limit``), round in the image (elongation: the ratio of the blob's principal
+    axes, a pixel's own extent included), not compressed against the rim (the share of
+    its pixels whose normal is more than :data:`RIM_BLOB_ANGLE_DEG` from the view ray: a
+    grazing reflection of a lit floor or wall lies there, stretched along the rim), and,
+    when ``expect_to_light`` (a diffuse sphere's shading direction) is given, near that
+    direction. In a linear HDR image a dimmer blob loses by its brightness too. Scores
+    are log-likelihood-like: 0 is a perfect candidate, each unit a clear strike."""
+    peak = float(crop[cores > 0].max())
+    refl = s["reflect"]
+    cos_view = s["cos_view"]
+    scores, dirs = [], []
+    for k in index:
+        ys, xs = np.nonzero(cores == k)
+        w = crop[ys, xs]
+        d = (refl[ys, xs] * w[:, None]).sum(0)
+        d = d / max(np.linalg.norm(d), 1e-12)
+        dirs.append(d)
+        score = 0.0
+        spread = _spread_deg(refl[ys, xs]) if ys.size > 1 else 0.0
+        score -= max(0.0, spread - spread_limit) / max(spread_limit, 1e-6)
+        if ys.size >= 3:
+            cov = np.cov(np.stack([xs, ys]).astype(np.float64)) + np.eye(2) / 12.0
+            ev = np.linalg.eigvalsh(cov)
+            score -= 0.5 * max(0.0, math.sqrt(ev[1] / max(ev[0], 1e-9)) - 1.5)
+        grazing = float(np.mean(cos_view[ys, xs] < math.cos(math.radians(RIM_BLOB_ANGLE_DEG))))
+        score -= 2.0 * grazing
+        if expect_to_light is not None:
+            e = np.asarray(expect_to_light, np.float64)
+            angle = math.degrees(math.acos(float(np.clip(d @ (e / np.linalg.norm(e)), -1.0, 1.0))))
+            score -= max(0.0, angle - 15.0) / 30.0
+        score += 2.0 * math.log10(max(float(w.max()), 1e-12) / peak)   # HDR: a dimmer blob is less likely
+        score += 0.05 * math.log10(ys.size)                             # ties: the larger blob (a brighter light)
+        scores.append(score)
+    return np.asarray(scores), np.asarray(dirs)
 
 
 def _spread_deg(directions: np.ndarray) -> float:
@@ -450,17 +551,41 @@ def _spread_deg(directions: np.ndarray) -> float:
     return float(math.degrees(math.sqrt(max(2.0 * (1.0 - np.linalg.norm(directions.mean(0))), 0.0))))
 
 
-def _uncertainty_deg(camera: Camera, sphere: Sphere, q: dict) -> float:
-    """Rough 1-sigma uncertainty of the direction (degrees): outline and highlight position
-    errors (pixels) turned into normal errors on a sphere of radius ``r_px``, doubled by the
-    reflection and stretched by foreshortening; plus a term for a broad highlight."""
+FOCAL_REL_UNCERTAINTY = 0.02   # a stated field of view or focal length: about 2% (EXIF, calibration)
+
+
+def error_budget(camera: Camera, sphere: Sphere, q: dict, circle_px: float | None = None) -> dict:
+    """Rough 1-sigma error budget of the direction (degrees), by source:
+
+    * ``circle_deg``: the outline's position error (``circle_px``, e.g. a given circle's
+      stated uncertainty; else from the outline fit's rms and point count),
+    * ``highlight_deg``: the highlight's position error (pixels, growing with its size),
+      its spread, and, when two candidates remain, the angle to the other one times the
+      ambiguity,
+    * ``camera_deg``: the camera model: a perspective focal length known to
+      :data:`FOCAL_REL_UNCERTAINTY` tilts each view ray by that share of its angle off
+      the axis (orthographic: 0, the far camera taken as exact);
+
+    each position error turned into a normal error on a sphere of radius ``r_px``,
+    doubled by the reflection and stretched by foreshortening. ``total_deg`` adds them in
+    quadrature."""
     r_px = sphere.radius * (camera.pixel_scale(sphere.c / np.linalg.norm(sphere.c)) / np.linalg.norm(sphere.c)
                             if camera.perspective else 1.0)
-    outline_px = 0.05 + sphere.outline_rms_px / math.sqrt(max(sphere.outline_points, 1) / 8.0)
+    if circle_px is None:
+        circle_px = 0.05 + sphere.outline_rms_px / math.sqrt(max(sphere.outline_points, 1) / 8.0)
     highlight_px = 0.1 + 0.1 * math.sqrt(q["highlight_pixels"])
     cos_n = max(math.cos(math.radians(q["view_angle_deg"] / 2.0)), 0.1)
-    geometric = 2.0 * math.hypot(outline_px, highlight_px) / (r_px * cos_n)
-    return float(math.degrees(geometric) + 0.1 * q["highlight_spread_deg"] + 10.0 * q["ambiguity"] ** 4)
+    to_deg = math.degrees(2.0 / (r_px * cos_n))
+    circle_deg = circle_px * to_deg
+    highlight_deg = (highlight_px * to_deg + 0.1 * q["highlight_spread_deg"]
+                     + q.get("ambiguity", 0.0) * q.get("alternative_separation_deg", 0.0))
+    camera_deg = 0.0
+    if camera.perspective:
+        c = sphere.c / np.linalg.norm(sphere.c)
+        off_axis = math.acos(min(abs(float(c[2])), 1.0))
+        camera_deg = math.degrees(FOCAL_REL_UNCERTAINTY * math.sin(off_axis) * math.cos(off_axis))
+    return {"circle_deg": circle_deg, "highlight_deg": highlight_deg, "camera_deg": camera_deg,
+            "total_deg": math.sqrt(circle_deg ** 2 + highlight_deg ** 2 + camera_deg ** 2)}
 
 
 def diffuse_light(image: np.ndarray, camera: Camera, sphere: Sphere,

@@ -3,10 +3,6 @@ overlay) out. See :mod:`relight.probe.geometry` for the geometry and
 :mod:`relight.probe.detect` for finding the spheres."""
 from __future__ import annotations
 
-__all__ = [
-    "ProbeConfig", "ProbeResult", "locate_sphere", "run_probe", "write_qa",
-]
-
 import math
 from dataclasses import dataclass
 
@@ -15,6 +11,17 @@ import numpy as np
 from relight.probe import detect
 from relight.probe import geometry as geom
 from relight.probe.geometry import Camera, ProbeError, Sphere
+
+__all__ = [
+    "CIRCLE_TOLERANCE_PX",
+    "ProbeConfig",
+    "ProbeResult",
+    "locate_sphere",
+    "run_probe",
+    "write_qa",
+]
+
+CIRCLE_TOLERANCE_PX = 0.5     # a given circle's default uncertainty (centre and radius, pixels)
 
 
 @dataclass(frozen=True)
@@ -33,6 +40,7 @@ class ProbeConfig:
     camera_tilt_deg: float | None = None
     linear: bool = False
     refine: bool = True
+    circle_tolerance_px: float = CIRCLE_TOLERANCE_PX
 
     def __post_init__(self):
         if not self.chrome and not self.diffuse:
@@ -65,85 +73,107 @@ class ProbeResult:
 
 
 def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mask_path: str | None = None,
-                  refine: bool = True, exclude=(), candidates: list | None = None
-                  ) -> tuple[Sphere, np.ndarray | None, str]:
-    """The ``kind`` sphere in ``image`` from a mask, a circle (refined on the image's
-    edges unless ``refine`` is off or the edges disagree), or automatic detection
+                  refine: bool = True, exclude=(), candidates: list | None = None,
+                  tolerance_px: float = CIRCLE_TOLERANCE_PX) -> tuple[Sphere, np.ndarray | None, str, dict]:
+    """The ``kind`` sphere in ``image`` from a mask, a circle, or automatic detection
     (``candidates``: those of :func:`relight.probe.detect.find_spheres`, if already found;
-    the list is filled in place). Returns ``(sphere, mask or None, how)``."""
+    the list is filled in place). Returns ``(sphere, mask or None, how, refinement)``.
+
+    A given circle is the truth unless the image proves otherwise: it is refined on the
+    image's edges (unless ``refine`` is off or ``tolerance_px`` is 0) only within
+    ``tolerance_px`` of its centre and radius, and the refinement is kept only when the
+    outline then fits the edges better than the given circle
+    (:func:`relight.probe.detect.constrained_refinement`); ``refinement`` reports it."""
     if mask_path is not None:
         mask = detect.load_mask(mask_path)
-        return geom.sphere_from_mask(camera, mask), mask, "mask"
+        return geom.sphere_from_mask(camera, mask), mask, "mask", {}
     if circle is not None:
         guess = geom.sphere_from_circle(camera, *circle)
         geom.bounding_box(camera, guess)
-        if not refine:
-            return guess, None, "circle"
-        try:
-            sphere, support = detect.refine_sphere(image, camera, guess)
-        except ProbeError:
-            return guess, None, "circle (edges too faint to refine)"
-        r0 = circle[2]
-        moved = math.dist(detect.outline_circle(camera, sphere), detect.outline_circle(camera, guess))
-        if support < detect.MIN_EDGE_SUPPORT or moved > 0.15 * r0:
-            return guess, None, "circle (edges disagree; not refined)"
-        return sphere, None, "circle refined on edges"
+        if not refine or tolerance_px <= 0:
+            return guess, None, "circle", {"tolerance_px": 0.0, "accepted": False}
+        sphere, report = detect.constrained_refinement(image, camera, circle, tolerance_px)
+        how = "circle refined on edges" if report["accepted"] else "circle (as given)"
+        return sphere, None, how, report
     if candidates is None:
         candidates = []
     if not candidates:
         candidates.extend(detect.find_spheres(image, camera))
     found = detect.pick_sphere(candidates, kind, exclude)
-    return found["sphere"], None, "detected"
+    return found["sphere"], None, "detected", {}
 
 
 def run_probe(cfg: ProbeConfig) -> ProbeResult:
     """Run the sphere procedure; returns the predictions entry (without ``id``).
 
-    Direction: the chrome sphere's highlight (each pixel's own view ray reflected),
-    else the diffuse sphere's shading. Colour: the diffuse sphere's mean lit colour
-    (white when there is no diffuse sphere).
+    Direction: the chrome sphere's highlight (each pixel's own view ray reflected; among
+    equally bright blobs the one a small light explains best, the diffuse sphere's
+    shading direction helping when there is one), else the diffuse sphere's shading.
+    Colour: the diffuse sphere's mean lit colour (white when there is no diffuse sphere).
     """
     entry: dict = {}
     result = ProbeResult(entry=entry, camera=None)
     direction, rgb, methods = None, np.ones(3) / math.sqrt(3.0), []
     chrome_circle = None
     candidates: list = []      # spheres found automatically, shared when both are in one image
+    chrome_found = None
     if cfg.chrome:
         image, clip, how = detect.read_probe_image(cfg.chrome, cfg.linear)
-        camera = cfg.camera(image.shape[1], image.shape[0])
-        sphere, mask, found = locate_sphere(image, camera, "chrome", cfg.chrome_circle, cfg.chrome_mask, cfg.refine,
-                                            candidates=candidates)
         if np.asarray(image).max() <= 0:
             raise ProbeError(f"{cfg.chrome} is black")
-        hl = geom.locate_highlight(image, camera, sphere, mask, clip)
-        direction = hl.to_light
-        chrome_circle = detect.outline_circle(camera, sphere)
-        entry["chrome_circle"] = [round(v, 3) for v in chrome_circle]
-        entry["chrome_found_by"] = found
-        entry["chrome_centre_camera"] = [round(float(v), 6) for v in sphere.c / np.linalg.norm(sphere.c)]
-        entry["quality"] = {k: (round(v, 4) if isinstance(v, float) else v) for k, v in hl.quality.items()}
-        entry["quality"]["outline_rms_px"] = round(sphere.outline_rms_px, 4)
-        entry["quality_deg"] = round(hl.quality["uncertainty_deg"], 3)
-        entry["image_encoding"] = how
-        methods.append("chrome")
-        result.camera, result.chrome_image, result.chrome_sphere, result.highlight = camera, image, sphere, hl
+        camera = cfg.camera(image.shape[1], image.shape[0])
+        chrome_found = locate_sphere(image, camera, "chrome", cfg.chrome_circle, cfg.chrome_mask, cfg.refine,
+                                     candidates=candidates, tolerance_px=cfg.circle_tolerance_px)
+        chrome_circle = detect.outline_circle(camera, chrome_found[0])
+        result.camera, result.chrome_image = camera, image
+    d_dir = None
     if cfg.diffuse:
         same = cfg.diffuse == cfg.chrome
         image = result.chrome_image if same else detect.read_probe_image(cfg.diffuse, cfg.linear)[0]
         camera = cfg.camera(image.shape[1], image.shape[0])
         exclude = [chrome_circle] if same and chrome_circle is not None else []
-        sphere, mask, found = locate_sphere(image, camera, "diffuse", cfg.diffuse_circle, cfg.diffuse_mask,
-                                            cfg.refine, exclude, candidates if same else None)
+        sphere, mask, found, refinement = locate_sphere(image, camera, "diffuse", cfg.diffuse_circle,
+                                                        cfg.diffuse_mask, cfg.refine, exclude,
+                                                        candidates if same else None, cfg.circle_tolerance_px)
         d_dir, rgb, info = geom.diffuse_light(image, camera, sphere, mask)
         entry["diffuse_circle"] = [round(v, 3) for v in detect.outline_circle(camera, sphere)]
         entry["diffuse_found_by"] = found
+        if refinement:
+            entry["diffuse_circle_refinement"] = refinement
         entry["diffuse_to_light_camera"] = [round(float(v), 6) for v in d_dir]
         entry["diffuse_fit"] = {k: round(v, 4) if isinstance(v, float) else v for k, v in info.items()}
-        if direction is None:
-            direction = d_dir
-        methods.append("diffuse")
         result.diffuse_image, result.diffuse_sphere = image, sphere
         result.camera = result.camera or camera
+    if cfg.chrome:
+        sphere, mask, found, refinement = chrome_found
+        image, camera = result.chrome_image, result.camera
+        circle_px = None
+        if found.startswith("circle"):   # the given circle's stated uncertainty
+            circle_px = refinement.get("tolerance_px", 0.0) or CIRCLE_TOLERANCE_PX
+        hl = geom.locate_highlight(image, camera, sphere, mask, clip, expect_to_light=d_dir, circle_px=circle_px)
+        direction = hl.to_light
+        entry["chrome_circle"] = [round(v, 3) for v in chrome_circle]
+        entry["chrome_found_by"] = found
+        if refinement:
+            entry["chrome_circle_refinement"] = refinement
+        entry["chrome_centre_camera"] = [round(float(v), 6) for v in sphere.c / np.linalg.norm(sphere.c)]
+        entry["quality"] = {k: (round(v, 4) if isinstance(v, float) else v) for k, v in hl.quality.items()
+                            if not k.startswith("alternative")}
+        entry["quality"]["outline_rms_px"] = round(sphere.outline_rms_px, 4)
+        entry["quality_deg"] = round(hl.quality["uncertainty_deg"], 3)
+        if hl.quality["ambiguity"] > 0:
+            q = hl.quality
+            entry["ambiguity"] = {"score": round(q["ambiguity"], 3),
+                                  "alternative_to_light_camera": [round(v, 6) for v in q["alternative_to_light"]],
+                                  "alternative_px": [round(v, 2) for v in q["alternative_px"]],
+                                  "separation_deg": round(q["alternative_separation_deg"], 2)}
+        entry["image_encoding"] = how
+        methods.append("chrome")
+        result.chrome_sphere, result.highlight = sphere, hl
+    if cfg.diffuse:
+        methods.append("diffuse")
+        if direction is None:
+            direction = d_dir
     entry["to_light_camera"] = [float(v) for v in direction]
     entry["rgb"] = [float(v) for v in rgb]
     entry["method"] = "+".join(methods)
@@ -189,8 +219,12 @@ def _draw(canvas, camera: Camera, sphere: Sphere | None, highlight: geom.Highlig
     if np.linalg.norm(end - hit_px) < 0.2 * r_px:     # toward or away from the camera: lengthen
         end = hit_px + (end - hit_px) * (0.2 * r_px / max(np.linalg.norm(end - hit_px), 1e-9))
     cv2.arrowedLine(canvas, tup(hit_px), tup(end), (0, 0, 255), thick, cv2.LINE_AA, shift=4, tipLength=0.2)
-    c = tup(np.asarray(highlight.pixel))
     arm = 6 * 16
+    if "alternative_px" in highlight.quality:   # the other candidate of an ambiguous choice: yellow
+        a = tup(np.asarray(highlight.quality["alternative_px"]))
+        cv2.line(canvas, (a[0] - arm, a[1] - arm), (a[0] + arm, a[1] + arm), (0, 255, 255), thick, cv2.LINE_AA, shift=4)
+        cv2.line(canvas, (a[0] - arm, a[1] + arm), (a[0] + arm, a[1] - arm), (0, 255, 255), thick, cv2.LINE_AA, shift=4)
+    c = tup(np.asarray(highlight.pixel))
     cv2.line(canvas, (c[0] - arm, c[1]), (c[0] + arm, c[1]), (255, 0, 255), thick, cv2.LINE_AA, shift=4)
     cv2.line(canvas, (c[0], c[1] - arm), (c[0], c[1] + arm), (255, 0, 255), thick, cv2.LINE_AA, shift=4)
 
@@ -200,9 +234,11 @@ CHROME_BGR, DIFFUSE_BGR = (0, 255, 0), (255, 255, 0)
 
 def write_qa(path: str, result: ProbeResult, title: str = "") -> None:
     """QA overlay PNG: the image with the outlines (green chrome, cyan diffuse), the
-    highlight (magenta cross), the normal there (orange, from the sphere's centre) and the
-    reflected direction toward the light (red arrow); on the right, each sphere enlarged
-    with the same marks; below, the numbers."""
+    highlight (magenta cross; a rival candidate, when the choice was ambiguous, as a
+    yellow x), the normal there (orange, from the sphere's centre) and the reflected
+    direction toward the light (red arrow); on the right, each sphere enlarged with the
+    same marks; below, the numbers, with the error budget (circle, highlight, camera
+    model, in degrees)."""
     import cv2
     from relight.imageio import to_srgb8
     cam = result.camera
@@ -232,9 +268,10 @@ def write_qa(path: str, result: ProbeResult, title: str = "") -> None:
         tiles.append(tile)
     right = np.concatenate(tiles, 0)
     height = max(full.shape[0], right.shape[0])
-    panel = np.zeros((height + 70, full.shape[1] + right.shape[1] + 4, 3), np.uint8)
+    # wide enough for the caption lines (about 6 px a character at this font size)
+    panel = np.zeros((height + 90, max(full.shape[1] + right.shape[1] + 4, 800), 3), np.uint8)
     panel[:full.shape[0], :full.shape[1]] = full
-    panel[:right.shape[0], full.shape[1] + 4:] = right
+    panel[:right.shape[0], full.shape[1] + 4:full.shape[1] + 4 + right.shape[1]] = right
     e = result.entry
     d = e["to_light_camera"]
     if exposure > 1.5:
@@ -246,6 +283,10 @@ def write_qa(path: str, result: ProbeResult, title: str = "") -> None:
         lines.append(f"uncertainty ~{e['quality_deg']:.2f} deg; highlight {q['highlight_pixels']} px"
                      f"{' clipped' if q['clipped'] else ''}; view angle {q['view_angle_deg']:.0f} deg; "
                      f"outline rms {q['outline_rms_px']:.2f} px; ambiguity {q['ambiguity']:.2f}")
+        b = q["error_budget_deg"]
+        lines.append(f"error budget (deg, 1 sigma): circle {b['circle_deg']:.2f}  highlight {b['highlight_deg']:.2f}"
+                     f"  camera model {b['camera_deg']:.2f}  -> total {b['total_deg']:.2f}"
+                     f"  [chrome {e['chrome_found_by']}]")
     for i, text in enumerate(t for t in lines if t):
         cv2.putText(panel, text, (6, height + 18 + 20 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1,
                     cv2.LINE_AA)

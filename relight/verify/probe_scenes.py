@@ -25,15 +25,16 @@ __all__ = [
     "GROUND_ALBEDO", "WINDOW_RADIANCE", "MAX_VIEW_LIGHT_ANGLE_DEG", "MIN_LIGHT_ELEVATION_DEG", "FOV_RANGE_DEG",
     "RADIUS_PX_RANGE", "FIREFLY_RATIO", "DEPTH_RANGE", "ProbeScene", "sample_probe_scene", "remove_fireflies",
     "render_probe_scene",
+    "specular_point", "sample_room_scene", "room_sphere_camera", "room_circle", "room_sphere", "render_room_mitsuba", "render_room_cycles", "main",
 ]
 
 import math
+import os
 from dataclasses import dataclass
 
 import numpy as np
 
 from relight import backend, render
-from relight.probe.geometry import Camera, Sphere, outline_circle
 
 LIGHT_ANGULAR_RADIUS_DEG = 2.0
 LIGHT_DISTANCE_RADII = 1000.0
@@ -65,10 +66,12 @@ class ProbeScene:
 
     @property
     def camera(self) -> Camera:
+        from relight.probe.geometry import Camera
         return Camera.from_fov(self.width, self.height, self.fov_deg)
 
     def circle(self, which: str = "chrome") -> tuple[float, float, float]:
         """The circle closest to a sphere's image outline (what a person would mark)."""
+        from relight.probe.geometry import outline_circle
         return outline_circle(self.camera, getattr(self, which))
 
     def truth(self) -> dict:
@@ -77,6 +80,7 @@ class ProbeScene:
 
 
 def _place_sphere(rng, camera: Camera, radius_px: float, taken: list) -> Sphere | None:
+    from relight.probe.geometry import Sphere
     for _ in range(200):
         x = rng.uniform(radius_px * 1.3 + 4, camera.width - radius_px * 1.3 - 4)
         y = rng.uniform(radius_px * 1.3 + 4, camera.height - radius_px * 1.3 - 4)
@@ -111,6 +115,7 @@ def sample_probe_scene(seed: int, width: int = 640, height: int = 480, clutter: 
     """A random validation scene: FOV uniform in :data:`FOV_RANGE_DEG`, the two spheres
     anywhere in the frame (chrome radius in :data:`RADIUS_PX_RANGE` pixels), the light
     in front (``front``) or behind (random if ``None``)."""
+    from relight.probe.geometry import Camera
     rng = np.random.default_rng(seed)
     fov = float(fov_deg if fov_deg is not None else rng.uniform(*FOV_RANGE_DEG))
     camera = Camera.from_fov(width, height, fov)
@@ -247,3 +252,413 @@ def render_probe_scene(scene: ProbeScene, spp: int = 64, seed: int = 0) -> np.nd
     loaded = mi.load_dict(_scene_dict(scene, spp))
     image = render.render_scene(loaded, spp, seed)[..., :3]
     return remove_fireflies(image)
+
+
+# --------------------------------------------------------------------------- the harder set: rooms
+# A chrome and a gray sphere of 10-40 px radius resting on the textured floor of a
+# relight room (walls, clutter objects from the generator's shape families, a coloured
+# diffuse ball: another ball in view), lit by a small spherical light inside the room,
+# so floor and walls near the light are bright and their grazing reflections clip in
+# 8-bit. One JSON file (``relight.probe-scene/v1``) holds the room as a relight scene file
+# (``"scene"``, built for Cycles by :func:`relight.scene.blender.export_blender`) plus the
+# spheres and the light; Mitsuba and Cycles render the same file. This module's room
+# part imports only numpy and relight's numpy-only parts at module level, so that it
+# runs in the bpy environment.
+
+PROBE_SCENE_FORMAT = "relight.probe-scene/v1"
+ROOM_RES_CHOICES = (128, 256, 256, 384, 512)
+ROOM_RADIUS_PX = (10.0, 40.0)        # chrome sphere radius in pixels (at most 15% of the image side)
+ROOM_FOV_DEG = (20.0, 60.0)
+ROOM_LIGHT_ANGULAR_RADIUS_DEG = (2.0, 4.0)   # the light as seen from the chrome sphere (a 3-25 cm lamp)
+ROOM_IRRADIANCE = (3.0, 6.0)         # W/m^2 from the light at the chrome sphere
+CHROME_REFLECTANCE = 0.6             # a perfect mirror times this (Cr is 0.55-0.65)
+ROOM_SPP = 64
+ROOM_MAX_VIEW_LIGHT_ANGLE_DEG = 120.0   # back light: beyond this, a 10 px sphere's highlight lies within a pixel of its rim
+ROOM_SKY_RADIANCE = 0.06             # a dim constant sky above the open room (fill light)
+
+
+def _ray_floor(origin, direction, height: float):
+    """Point where a world ray meets the plane z = ``height`` (None if it does not)."""
+    if direction[2] >= -1e-6:
+        return None
+    t = (height - origin[2]) / direction[2]
+    return origin + t * direction if t > 0 else None
+
+
+def _pixel_ray_world(cam_spec, res: int, x: float, y: float) -> np.ndarray:
+    from relight import frames
+    f = 0.5 * res / math.tan(math.radians(cam_spec.fov_deg) / 2.0)
+    d_cam = np.array([x - res / 2.0, -(y - res / 2.0), -f])
+    d = frames.camera_to_world_vector(d_cam / np.linalg.norm(d_cam), cam_spec.tilt_deg, cam_spec.pan_deg)
+    return np.asarray(d, np.float64)
+
+
+def _project_world(cam_spec, res: int, p) -> tuple[np.ndarray, float]:
+    """Pixel (x, y) of a world point and its distance from the camera."""
+    from relight import frames
+    q = frames.world_to_camera(np.asarray(p, np.float64) - cam_spec.position_m, cam_spec.tilt_deg,
+                               cam_spec.pan_deg)
+    f = 0.5 * res / math.tan(math.radians(cam_spec.fov_deg) / 2.0)
+    return np.array([res / 2.0 + f * q[0] / -q[2], res / 2.0 - f * q[1] / -q[2]]), float(np.linalg.norm(q))
+
+
+def _place_ball(rng, cam_spec, res: int, radius_px: float, taken: list, lower: float = 0.35):
+    """A ball resting on the floor whose image has about ``radius_px`` pixels radius,
+    clear of the image border and of ``taken`` image circles: ``(centre_m, radius_m)``."""
+    f = 0.5 * res / math.tan(math.radians(cam_spec.fov_deg) / 2.0)
+    origin = cam_spec.position_m
+    margin = radius_px * 1.4 + 3
+    for _ in range(400):
+        x = rng.uniform(margin, res - margin)
+        y = rng.uniform(max(margin, lower * res), res - margin)
+        d = _pixel_ray_world(cam_spec, res, x, y)
+        radius = 0.1
+        centre = None
+        for _it in range(6):   # the ray meets the plane of centres z = R; R follows the distance
+            p = _ray_floor(origin, d, radius)
+            if p is None:
+                break
+            dist = float(np.linalg.norm(p - origin))
+            radius = dist * math.sin(math.atan(radius_px / f))
+            centre = p
+        if centre is None or not 0.02 < radius < 2.0:
+            continue
+        xy, _ = _project_world(cam_spec, res, centre)
+        if any(math.hypot(xy[0] - tx, xy[1] - ty) < (radius_px + tr) * 1.25 + 4 for tx, ty, tr in taken):
+            continue
+        taken.append((float(xy[0]), float(xy[1]), radius_px))
+        return centre, radius
+    return None
+
+
+def _blocked(a, b, blockers) -> bool:
+    """Whether the segment from ``a`` to ``b`` passes through a blocker: ``(centre,
+    radius, 0)`` a ball, ``(foot, radius, height)`` a vertical cylinder standing at
+    ``foot`` (a clutter object's bounds)."""
+    t = np.linspace(0.0, 1.0, 400)[:, None]
+    pts = np.asarray(a, np.float64) + t * (np.asarray(b, np.float64) - np.asarray(a, np.float64))
+    for centre, radius, height in blockers:
+        c = np.asarray(centre, np.float64)
+        if height == 0.0:
+            if (np.linalg.norm(pts - c, axis=1) < radius * 1.02).any():
+                return True
+        elif ((np.hypot(pts[:, 0] - c[0], pts[:, 1] - c[1]) < radius) & (pts[:, 2] < height)).any():
+            return True
+    return False
+
+
+def specular_point(centre, radius: float, eye, light) -> np.ndarray:
+    """The point of a mirror sphere where ``light`` (a point) reflects toward ``eye``: the
+    normal there bisects the unit directions to both (fixed point iteration, then Newton-free
+    refinement; converges for a sphere small against both distances)."""
+    c, e, l = (np.asarray(v, np.float64) for v in (centre, eye, light))
+    n = (e - c) / np.linalg.norm(e - c) + (l - c) / np.linalg.norm(l - c)
+    n /= np.linalg.norm(n)
+    for _ in range(200):
+        p = c + radius * n
+        n_new = (e - p) / np.linalg.norm(e - p) + (l - p) / np.linalg.norm(l - p)
+        n_new /= np.linalg.norm(n_new)
+        if np.linalg.norm(n_new - n) < 1e-15:
+            break
+        n = n_new
+    return c + radius * n
+
+
+def sample_room_scene(seed: int, res: int | None = None) -> dict:
+    """A random probe scene of the harder set (a ``relight.probe-scene/v1`` dict, with
+    its truth): image ``res`` (square; random among :data:`ROOM_RES_CHOICES` if None).
+    A draw whose spheres or light cannot be placed is drawn again (another stream)."""
+    for attempt in range(50):
+        try:
+            return _sample_room_scene(np.random.default_rng([10_000 + seed, attempt]), seed, res)
+        except _Unplaceable:
+            continue
+    raise RuntimeError(f"probe scene {seed}: could not place the spheres")
+
+
+class _Unplaceable(Exception):
+    pass
+
+
+def _sample_room_scene(rng, seed: int, res: int | None) -> dict:
+    from relight import frames
+    from relight.scene import albedo, shapes, textures
+    from relight.scene.spec import CameraSpec, LightSpec, ObjectSpec, RenderSpec, RoomSpec, SceneSpec
+    res = int(res or rng.choice(ROOM_RES_CHOICES))
+    fov = float(np.round(rng.uniform(*ROOM_FOV_DEG), 2))
+    cam = CameraSpec(tilt_deg=float(np.round(rng.uniform(10.0, 35.0), 2)),
+                     r_m=float(np.round(rng.uniform(3.0, 7.0), 3)), pan_deg=0.0, fov_deg=fov)
+    r_px = float(rng.uniform(ROOM_RADIUS_PX[0], min(ROOM_RADIUS_PX[1], 0.15 * res)))
+    taken: list = []
+    chrome = _place_ball(rng, cam, res, r_px, taken)
+    gray = _place_ball(rng, cam, res, r_px * rng.uniform(0.8, 1.25), taken)
+    ball = _place_ball(rng, cam, res, r_px * rng.uniform(0.7, 1.4), taken, lower=0.2)
+    if chrome is None or gray is None or ball is None:
+        raise _Unplaceable
+    prior = "hsv"
+    inradius = float(cam.r_m * math.cos(math.radians(cam.tilt_deg)) + rng.uniform(1.5, 4.0))
+    n_walls = int(rng.integers(4, 7))
+    room = RoomSpec(n_walls=n_walls, inradius_m=round(inradius, 3), height_m=3.0,
+                    rotation_deg=float(np.round(rng.uniform(0, 360.0 / n_walls), 3)),
+                    wall_textures=tuple(textures.sample_texture_params(rng, None, prior) for _ in range(n_walls)),
+                    floor_texture=textures.sample_texture_params(rng, None, prior), texture_res=128)
+    objects = []
+    for _ in range(int(rng.integers(2, 4))):
+        placed = _place_ball(rng, cam, res, r_px * rng.uniform(1.0, 2.0), taken, lower=0.15)
+        if placed is None:
+            continue
+        (px, py, _), size = placed[0], placed[1]
+        family = str(shapes.FAMILIES[int(rng.integers(0, len(shapes.FAMILIES)))])
+        objects.append(ObjectSpec(family=family, params=shapes.sample_shape_params(family, rng),
+                                  position_m=(float(px), float(py)), yaw_deg=float(rng.uniform(0, 360)),
+                                  size_m=float(size), reflectance=albedo.object_reflectance(rng, prior),
+                                  roughness=0.0))
+    # the light: above the floor, inside the room, 1-3.5 m from the chrome sphere
+    c_centre, c_radius = chrome
+    eye = cam.position_m
+    to_cam = (eye - c_centre) / np.linalg.norm(eye - c_centre)
+    front = bool(seed % 2 == 0)
+    for _ in range(5000):
+        el = math.radians(rng.uniform(10.0, 75.0))
+        az = rng.uniform(0, 2 * math.pi)
+        l = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+        cos_v = float(l @ to_cam)
+        if (cos_v > 0) != front or math.degrees(math.acos(cos_v)) > ROOM_MAX_VIEW_LIGHT_ANGLE_DEG:
+            continue
+        dist = rng.uniform(1.0, 3.5)
+        pos = c_centre + dist * l
+        if np.linalg.norm(pos[:2]) > inradius * math.cos(math.pi / n_walls) - 0.3 or pos[2] > 2.8:
+            continue
+        break
+    else:
+        raise _Unplaceable
+    spot = specular_point(c_centre, c_radius, eye, pos)
+    blockers = [(gray[0], gray[1], 0.0), (ball[0], ball[1], 0.0)] + [
+        (np.array([o.position_m[0], o.position_m[1], 0.0]), o.size_m * 1.15, o.size_m * 3.0) for o in objects]
+    if _blocked(spot, pos, blockers) or _blocked(eye, spot, blockers):
+        raise _Unplaceable     # the light's reflection would be hidden: no truth to measure
+    ang = math.radians(rng.uniform(*ROOM_LIGHT_ANGULAR_RADIUS_DEG))
+    light_radius = float(dist * math.tan(ang))
+    power = float(rng.uniform(*ROOM_IRRADIANCE) * 4 * math.pi * dist ** 2)
+    # the room's point light stays off (strength tiny); the probe light replaces it
+    light = LightSpec(r_m=1.0, pan_deg=0.0, tilt_deg=45.0, rgb=(1.0, 1.0, 1.0), strength=1e-9)
+    spec = SceneSpec(id=f"probe{seed:03d}", camera=cam, light=light, room=room, objects=tuple(objects),
+                     render=RenderSpec(res=res, spp=ROOM_SPP, max_depth=5, seed=seed))
+    to_light_world = (pos - spot) / np.linalg.norm(pos - spot)
+    to_light = frames.world_to_camera(to_light_world, cam.tilt_deg, cam.pan_deg)
+    centre_dir = frames.world_to_camera((pos - c_centre) / np.linalg.norm(pos - c_centre), cam.tilt_deg,
+                                        cam.pan_deg)
+    ball_rgb = tuple(float(v) for v in rng.uniform(0.1, 0.8, 3))
+    d = {"format": PROBE_SCENE_FORMAT, "id": spec.id, "scene": spec.to_dict(),
+         "chrome": {"centre_m": c_centre.tolist(), "radius_m": float(c_radius), "reflectance": CHROME_REFLECTANCE},
+         "gray": {"centre_m": gray[0].tolist(), "radius_m": float(gray[1]), "albedo": GRAY_ALBEDO},
+         "balls": [{"centre_m": ball[0].tolist(), "radius_m": float(ball[1]), "albedo": list(ball_rgb)}],
+         "light": {"position_m": pos.tolist(), "radius_m": light_radius, "power_w": power},
+         "sky_radiance": ROOM_SKY_RADIANCE}
+    d["truth"] = {"to_light_camera": [float(v) for v in to_light],
+                  "to_light_from_centre_camera": [float(v) for v in centre_dir],
+                  "front": front, "fov_deg": fov, "res": res,
+                  "chrome_circle": list(room_circle(d, "chrome")), "gray_circle": list(room_circle(d, "gray")),
+                  "ball_circles": [list(room_circle(d, "balls", 0))]}
+    return d
+
+
+def room_sphere_camera(d: dict, which: str, index: int = 0):
+    """``(centre, radius)`` of a sphere of a probe-scene dict in the camera frame (metres)."""
+    from relight import frames
+    from relight.scene.spec import CameraSpec
+    cam = CameraSpec(**d["scene"]["camera"])
+    s = d[which][index] if which == "balls" else d[which]
+    c = frames.world_to_camera(np.asarray(s["centre_m"]) - cam.position_m, cam.tilt_deg, cam.pan_deg)
+    return np.asarray(c, np.float64), float(s["radius_m"])
+
+
+def room_circle(d: dict, which: str, index: int = 0) -> tuple[float, float, float]:
+    """The circle closest to a sphere's image outline in a probe-scene dict."""
+    from relight.probe.geometry import Camera, Sphere, outline_circle
+    c, r = room_sphere_camera(d, which, index)
+    res = d["scene"]["render"]["res"]
+    camera = Camera.from_fov(res, res, d["scene"]["camera"]["fov_deg"])
+    n = float(np.linalg.norm(c))
+    return tuple(float(v) for v in outline_circle(camera, Sphere(tuple((c / n).tolist()), r / n)))
+
+
+def room_sphere(d: dict, which: str):
+    """The true :class:`relight.probe.geometry.Sphere` (unit-distance scale) of a probe scene."""
+    from relight.probe.geometry import Sphere
+    c, r = room_sphere_camera(d, which)
+    n = float(np.linalg.norm(c))
+    return Sphere(tuple((c / n).tolist()), r / n)
+
+
+def _probe_spheres(d: dict):
+    """``(name, centre, radius, kind, rgb)`` of each sphere a probe scene adds to the room."""
+    out = [("chrome", d["chrome"]["centre_m"], d["chrome"]["radius_m"], "mirror",
+            [d["chrome"]["reflectance"]] * 3),
+           ("gray", d["gray"]["centre_m"], d["gray"]["radius_m"], "diffuse", [d["gray"]["albedo"]] * 3)]
+    for i, b in enumerate(d.get("balls", [])):
+        out.append((f"ball{i}", b["centre_m"], b["radius_m"], "diffuse", b["albedo"]))
+    return out
+
+
+def render_room_mitsuba(d: dict, spp: int | None = None) -> np.ndarray:
+    """Mitsuba render (linear RGB, float32) of a probe-scene dict: the room as
+    :mod:`relight.scene.build` makes it (objects Lambert), plus the spheres and the
+    spherical light and a dim constant sky (the room has no ceiling)."""
+    from relight import frames
+    from relight.scene import build
+    from relight.scene.spec import SceneSpec
+    mi = backend.mitsuba()
+    t = mi.ScalarTransform4f
+    spec = SceneSpec.from_dict(d["scene"])
+    cam, room = spec.camera, spec.room
+
+    def bitmap(params, to_uv=None):
+        b = {"type": "bitmap", "data": mi.TensorXf(build.texture(params, room.texture_res)), "raw": True,
+             "filter_type": "bilinear", "wrap_mode": "repeat"}
+        if to_uv is not None:
+            b["to_uv"] = to_uv
+        return b
+
+    scene = {"type": "scene", "integrator": {"type": "path", "max_depth": spec.render.max_depth},
+             "sky": {"type": "constant", "radiance": {"type": "rgb", "value": [d["sky_radiance"]] * 3}},
+             "sensor": render.sensor(spec.render.res, cam.fov_deg, to_world=t(
+                 frames.mitsuba_sensor_to_world(cam.tilt_deg, cam.r_m, cam.pan_deg))),
+             "floor": {"type": "rectangle",
+                       "to_world": t().scale([build.FLOOR_HALF_SIZE_M, build.FLOOR_HALF_SIZE_M, 1.0]),
+                       "bsdf": {"type": "diffuse", "reflectance": bitmap(room.floor_texture, mi.ScalarTransform3f()
+                                .scale(2.0 * build.FLOOR_HALF_SIZE_M / build.FLOOR_TILE_M))}}}
+    for k in range(room.n_walls):
+        scene[f"wall{k}"] = {"type": "rectangle", "to_world": t(build.wall_to_world(
+            k, room.n_walls, room.inradius_m, room.height_m, room.rotation_deg)),
+            "bsdf": {"type": "diffuse", "reflectance": bitmap(room.wall_textures[k])}}
+    for i, obj in enumerate(spec.objects):
+        mesh = build.object_mesh(obj)
+        v, n = build._object_vertices(obj, mesh)
+        m = mi.Mesh(f"obj{i}", len(v), len(mesh.faces), has_vertex_normals=True)
+        p = mi.traverse(m)
+        p["vertex_positions"] = mi.Float(v.ravel())
+        p["vertex_normals"] = mi.Float(n.ravel())
+        p["faces"] = mi.UInt32(mesh.faces.astype(np.uint32).ravel())
+        p.update()
+        m.set_bsdf(mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": list(obj.reflectance)}}))
+        scene[f"obj{i}"] = m
+    for name, centre, radius, kind, rgb in _probe_spheres(d):
+        bsdf = ({"type": "conductor", "material": "none", "specular_reflectance": {"type": "rgb", "value": rgb}}
+                if kind == "mirror" else {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(rgb)}})
+        scene[name] = {"type": "sphere", "center": list(centre), "radius": radius, "bsdf": bsdf}
+    lt = d["light"]
+    radiance = lt["power_w"] / (4 * math.pi ** 2 * lt["radius_m"] ** 2)
+    scene["probe_light"] = {"type": "sphere", "center": lt["position_m"], "radius": lt["radius_m"],
+                            "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [radiance] * 3}}}
+    loaded = mi.load_dict(scene)
+    # no firefly removal: a highlight of one pixel is what a small sphere shows
+    return render.render_scene(loaded, spp or spec.render.spp, spec.render.seed)[..., :3]
+
+
+def render_room_cycles(d: dict, spp: int | None = None, threads: int | None = 1) -> np.ndarray:
+    """Cycles render (linear RGB, float32) of a probe-scene dict, in the bpy environment:
+    the room by :func:`relight.scene.blender.export_blender`, then the spheres (Cycles point
+    clouds, which it renders as exact spheres; the chrome one a Glossy BSDF of roughness
+    0) and the light (a point light of the light's radius, so a sphere, seen in the
+    mirror through multiple importance sampling), glossy bounces allowed."""
+    import tempfile
+
+    import bpy
+
+    from relight.scene import blender
+    from relight.scene.spec import SceneSpec
+    spec = SceneSpec.from_dict(d["scene"])
+    scene = blender.export_blender(spec, spp=spp, threads=threads)
+    c = scene.cycles
+    c.max_bounces = spec.render.max_depth
+    c.diffuse_bounces = spec.render.max_depth - 2
+    c.glossy_bounces = 2
+    for name, centre, radius, kind, rgb in _probe_spheres(d):
+        mat = bpy.data.materials.new(name)
+        nt = mat.node_tree
+        nt.nodes.clear()
+        if kind == "mirror":
+            bsdf = nt.nodes.new("ShaderNodeBsdfGlossy")
+            bsdf.inputs["Roughness"].default_value = 0.0
+        else:
+            bsdf = nt.nodes.new("ShaderNodeBsdfDiffuse")
+            bsdf.inputs["Roughness"].default_value = 0.0
+        bsdf.inputs["Color"].default_value = (*[float(v) for v in rgb], 1.0)
+        out = nt.nodes.new("ShaderNodeOutputMaterial")
+        out.target = "CYCLES"
+        nt.links.new(bsdf.outputs[0], out.inputs["Surface"])
+        me = bpy.data.meshes.new(name)
+        me.from_pydata([tuple(float(v) for v in centre)], [], [])
+        me.update()
+        ob = bpy.data.objects.new(name, me)
+        ng = bpy.data.node_groups.new(name + "_points", "GeometryNodeTree")
+        ng.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+        ng.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+        gin, gout = ng.nodes.new("NodeGroupInput"), ng.nodes.new("NodeGroupOutput")
+        pts = ng.nodes.new("GeometryNodeMeshToPoints")
+        pts.inputs["Radius"].default_value = float(radius)
+        setm = ng.nodes.new("GeometryNodeSetMaterial")
+        setm.inputs["Material"].default_value = mat
+        ng.links.new(gin.outputs[0], pts.inputs["Mesh"])
+        ng.links.new(pts.outputs[0], setm.inputs["Geometry"])
+        ng.links.new(setm.outputs[0], gout.inputs[0])
+        ob.modifiers.new("points", "NODES").node_group = ng
+        scene.collection.objects.link(ob)
+    lt = d["light"]
+    light = bpy.data.objects["light"]
+    light.location = tuple(float(v) for v in lt["position_m"])
+    light.data.energy = float(lt["power_w"])
+    light.data.color = (1.0, 1.0, 1.0)
+    light.data.shadow_soft_size = float(lt["radius_m"])
+    light.data.cycles.use_multiple_importance_sampling = True
+    world = scene.world.node_tree.nodes["Background"]
+    world.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    world.inputs["Strength"].default_value = float(d["sky_radiance"])
+    with tempfile.TemporaryDirectory(prefix="relight-probe-") as tmp:
+        out = os.path.join(tmp, "render.exr")
+        scene.render.filepath = out
+        with blender._quiet_stdout():
+            bpy.ops.render.render(write_still=True, scene=scene.name)
+        img = bpy.data.images.load(out, check_existing=False)
+        h, w = img.size[1], img.size[0]
+        pixels = np.empty(h * w * img.channels, np.float32)
+        img.pixels.foreach_get(pixels)
+        image = pixels.reshape(h, w, img.channels)[::-1, :, :3].copy()
+        bpy.data.images.remove(img)
+    return image
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m relight.verify.probe_scenes cycles SCENE.json ...`` (in the bpy
+    environment): render each probe scene with Cycles to ``SCENE.cycles.exr`` beside it,
+    skipping those already there."""
+    import argparse
+    import json
+    import sys
+    ap = argparse.ArgumentParser(prog="python -m relight.verify.probe_scenes")
+    ap.add_argument("what", choices=["cycles"])
+    ap.add_argument("scenes", nargs="+")
+    ap.add_argument("--spp", type=int, default=None)
+    ap.add_argument("--threads", type=int, default=1)
+    args = ap.parse_args(argv)
+    from relight.fileio import atomic_write
+    for path in args.scenes:
+        out = path[:-len(".json")] + ".cycles.exr"
+        if os.path.exists(out):
+            continue
+        with open(path) as f:
+            d = json.load(f)
+        image = render_room_cycles(d, spp=args.spp, threads=args.threads)
+
+        def save(tmp, image=image):
+            with open(tmp, "wb") as f:
+                np.save(f, image)
+        atomic_write(out[:-4] + ".npy", save)
+        sys.stdout.write(f"{out[:-4]}.npy\n")
+        sys.stdout.flush()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
