@@ -29,7 +29,6 @@ Errors are in degrees; a failure counts as 180.
 """
 from __future__ import annotations
 
-import argparse
 import glob
 import json
 import math
@@ -208,17 +207,19 @@ def report(rows: list, detect: list, worst: int = 0) -> None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    from relight.commands import argtypes as at
+    ap = at.OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--set", default=os.path.expanduser(os.path.join("~", "relight-data", "issue-29", "set")),
                     help="folder of the harder probe set")
-    ap.add_argument("--make", type=int, default=0, help="first make (or complete) a set of this many scenes")
-    ap.add_argument("--spp", type=int, default=64, help="samples per pixel when making the set")
+    ap.add_argument("--make", type=at.int_in(0, 10_000, "a scene count"), default=0,
+                    help="first make (or complete) a set of this many scenes")
+    ap.add_argument("--spp", type=at.spp, default=64, help="samples per pixel when making the set")
     ap.add_argument("--renderers", default="cycles,mitsuba")
     ap.add_argument("--kinds", default="png,exr", help="which files of the set: png (8-bit) and/or exr")
     ap.add_argument("--no-psm", action="store_true", help="skip shared/data/psm_spheres")
     ap.add_argument("--no-auto", action="store_true", help="circles given only (automatic detection is slow)")
     ap.add_argument("--qa", default=None, help="write QA overlays to this folder")
-    ap.add_argument("--worst", type=int, default=8, help="list the worst N results")
+    ap.add_argument("--worst", type=at.int_in(0, 10_000, "a count"), default=8, help="list the worst N results")
     args = ap.parse_args()
     if args.make:
         make_set(args.set, args.make, args.spp)
@@ -242,4 +243,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from relight.commands import argtypes
+    sys.exit(argtypes.run_script(main))
