@@ -224,3 +224,15 @@ def test_calibrate_fits_only_the_ood_detector_in_mode_none(tmp_path):
         assert torch.equal(v, after.state_dict()[k]), k
     with pytest.raises(TrainingError):
         calibrate_model_file(model_path, data, tmp_path / "x.safetensors", CalibrationConfig(split="all", mode="none"))
+
+
+def test_fine_tuning_drops_a_stale_ood_detector():
+    """Training moves the embedding, so a model grown from one with a detector carries none
+    (it is fitted again with ``relight calibrate --ood``), and keeps every network weight."""
+    from relight.net.ood import fit_ood
+    from relight.net.train import with_heads
+    fitted, _ = fit_ood(_net(), torch.rand(40, 3, 32, 32), dims=4)
+    plain = with_heads(fitted, ood_dims=0)
+    assert plain.config.ood_dims == 0 and not any(k.startswith("ood_") for k in plain.state_dict())
+    for k, v in plain.state_dict().items():
+        assert torch.equal(v, fitted.state_dict()[k]), k

@@ -30,6 +30,7 @@ __all__ = [
     "CHECKPOINT", "SETTINGS", "LOG", "LOG_FIELDS", "TrainConfig", "net_config", "plot_curves",
     "distributed_rank_world", "train", "RESOURCE_KEYS",
     "camera_loss", "with_camera_head",
+    "with_heads",
 ]
 
 import csv
@@ -195,14 +196,22 @@ def camera_loss(camera: torch.Tensor, camera_tilt_deg: torch.Tensor) -> torch.Te
     return torch.mean((camera - torch.stack([torch.sin(t), torch.cos(t)], dim=1)) ** 2)
 
 
+def with_heads(model: LightNet, **changes) -> LightNet:
+    """A copy of ``model`` whose config differs by ``changes`` in its optional parts (a camera
+    head, the out-of-distribution statistics): new parts start fresh (He-initialised), dropped
+    ones are left behind, every other weight is kept."""
+    import dataclasses
+    changed = LightNet(dataclasses.replace(model.config, **changes))
+    state = {k: v for k, v in model.state_dict().items() if k in changed.state_dict()}
+    missing, _ = changed.load_state_dict(state, strict=False)
+    if any(not k.startswith(("camera_head.", "ood_")) for k in missing):
+        raise TrainingError("cannot change the optional parts of this model")
+    return changed
+
+
 def with_camera_head(model: LightNet) -> LightNet:
     """A copy of ``model`` with a new (He-initialised) camera-tilt head; every other weight kept."""
-    import dataclasses
-    grown = LightNet(dataclasses.replace(model.config, camera_head=True))
-    missing, unexpected = grown.load_state_dict(model.state_dict(), strict=False)
-    if unexpected or any(not k.startswith("camera_head.") for k in missing):
-        raise TrainingError("cannot add a camera head to this model")
-    return grown
+    return with_heads(model, camera_head=True)
 
 
 def _epoch_order(n: int, seed: int, epoch: int) -> list[int]:
@@ -382,6 +391,8 @@ def _restore(cfg: TrainConfig, out_dir: str, resume: bool, ddp, writer: bool) ->
         if init_model.config.res != cfg.res:
             raise TrainingError(f"--init model takes {init_model.config.res} px inputs; give --res "
                                 f"{init_model.config.res}")
+        if init_model.config.ood_dims:   # training moves the embedding: the detector must be fitted again
+            init_model = with_heads(init_model, ood_dims=0)
         if cfg.camera_weight > 0 and not init_model.has_camera:   # a new camera head on the loaded network
             init_model = with_camera_head(init_model)
     from relight.net.augment import AUGMENTS
