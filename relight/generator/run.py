@@ -158,13 +158,15 @@ def _pipeline(out: str, cfg: GeneratorConfig, seed: int, indices: list[int], on_
     pool = (lambda name: ThreadPoolExecutor(1, thread_name_prefix=name)) if overlap else (lambda name: _Inline())
     with pool("prepare") as prep, pool("write") as writer:
         pending_writes = []
-        next_prep = prep.submit(_prepare, cfg, seed, indices[0], timer) if indices else None
+        with timer.stage("hand-off to helper threads"):   # the first call starts the thread
+            next_prep = prep.submit(_prepare, cfg, seed, indices[0], timer) if indices else None
         for k in range(len(indices)):
             with timer.image(indices[k]):
                 with timer.stage("wait: prepare"):
                     spec, meshes = next_prep.result()
-            if k + 1 < len(indices):
-                next_prep = prep.submit(_prepare, cfg, seed, indices[k + 1], timer)
+                if k + 1 < len(indices):
+                    with timer.stage("hand-off to helper threads"):
+                        next_prep = prep.submit(_prepare, cfg, seed, indices[k + 1], timer)
             with timer.image(indices[k]):
                 template = builder.template(spec, meshes, timer=timer)
                 t0 = time.perf_counter()
@@ -174,7 +176,8 @@ def _pipeline(out: str, cfg: GeneratorConfig, seed: int, indices: list[int], on_
             def write_and_record(spec=spec, image=image, render_s=render_s, index=indices[k]):
                 with timer.image(index):
                     on_record(_write(out, spec, image, split_of(spec.id, cfg.split), timer), render_s)
-            pending_writes.append(writer.submit(write_and_record))
+            with timer.image(indices[k]), timer.stage("hand-off to helper threads"):
+                pending_writes.append(writer.submit(write_and_record))
             with timer.image(indices[k]), timer.stage("wait: writes"):
                 while len(pending_writes) > 2 or (pending_writes and pending_writes[0].done()):
                     pending_writes.pop(0).result()  # re-raises a writer error here
