@@ -152,6 +152,18 @@ print(json.dumps({"t0": t0, "imports": t1 - t0, "backend": t2 - t1, "generate": 
 FIRST_COMPILE = ("template: load (new structure)", "render: tracing + launch", "render: kernel")
 
 
+# Table order of the stages (the order an image goes through them); others follow.
+STAGE_ORDER = ("hand-off to helper threads", "scene sampling", "meshes", "textures", "wait: prepare",
+               "template: load (new structure)", "template: parameters",
+               "template: update + acceleration structure", "render: tracing + launch", "render: kernel",
+               "render: readback", "write: scene JSON", "write: EXR", "write: PNG", "write: manifest append",
+               "wait: writes", "profiler: kernel history")
+
+
+def _ordered(stages: list[str]) -> list[str]:
+    return sorted(stages, key=lambda s: STAGE_ORDER.index(s) if s in STAGE_ORDER else len(STAGE_ORDER))
+
+
 def _uptime() -> str:
     try:
         return open("/proc/loadavg").read().split()[:3].__str__()
@@ -168,7 +180,7 @@ def _stage_table(timer, wall_s: float, n: int, threads: list[str], title: str) -
     print("|---|---|---|---|---|")
     counted = 0.0
     images = timer.images()
-    for stage in timer.stages():
+    for stage in _ordered(timer.stages()):
         own = timer.total(stage, image=...) if threads is None else sum(timer.total(stage, t) for t in threads)
         other = timer.total(stage) - own
         per = [sum(timer.total(stage, t, image=i) for t in (threads or timer.threads())) for i in images]
