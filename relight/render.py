@@ -21,6 +21,7 @@ __all__ = [
 import numpy as np
 
 from relight import backend
+from relight.timing import NO_TIMER
 
 
 def sensor(res: int, fov_deg: float, sampler: str = "independent", to_world=None,
@@ -39,14 +40,20 @@ def sensor(res: int, fov_deg: float, sampler: str = "independent", to_world=None
 
 
 def render_scene(scene, spp: int, seed: int, sampler: str = "independent", integrator=None,
-                 sensor: int = 0) -> np.ndarray:
+                 sensor: int = 0, timer=NO_TIMER) -> np.ndarray:
     """Render a loaded Mitsuba scene: ``(H, W, C)`` float32, linear. ``spp`` is rounded as
     ``sampler`` needs (:func:`exact_spp`: a product of two close integers for multijitter);
-    ``integrator`` (a loaded one) replaces the scene's, ``sensor`` picks one of its sensors."""
+    ``integrator`` (a loaded one) replaces the scene's, ``sensor`` picks one of its sensors.
+    ``timer`` (:class:`~relight.timing.StageTimer`) times tracing (``mi.render``
+    traces the kernel and queues it), the kernel's run and the readback apart."""
     mi = backend.mitsuba()
     spp = exact_spp(sampler, int(spp))
-    return np.array(mi.render(scene, integrator=integrator, sensor=int(sensor), spp=spp, seed=int(seed)),
-                    dtype=np.float32)
+    with timer.stage("render: tracing + launch"):
+        image = mi.render(scene, integrator=integrator, sensor=int(sensor), spp=spp, seed=int(seed))
+    with timer.stage("render: kernel", sync=True):
+        pass   # with a timer: wait here for the queued kernel (else the readback waits)
+    with timer.stage("render: readback"):
+        return np.array(image, dtype=np.float32)
 
 
 def exact_spp(sampler: str, spp: int) -> int:

@@ -33,6 +33,7 @@ import contextlib
 import json
 import os
 import time
+from concurrent.futures import Future
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,6 +41,7 @@ import numpy as np
 from relight.dataset.format import (CARD, DATASET_FORMAT, MANIFEST, MAX_COUNT, SEED_LIMIT, check_same_settings,
                                     read_card, read_manifest, record_for)
 from relight.fileio import LOCK_NAME, FolderLock, append_line, remove_temps, write_bytes, write_json
+from relight.timing import NO_TIMER
 from relight.generator.sampling import LEGACY_CONFIG, GeneratorConfig, sample_scene, split_of
 from relight.scene.spec import SceneSpec
 from relight.errors import DatasetError, DiskFullError, RelightError
@@ -84,18 +86,22 @@ def _write_card(out: str, seed: int, cfg: GeneratorConfig, count: int, n_records
     write_json(card_path, card)
 
 
-def _prepare(cfg: GeneratorConfig, seed: int, index: int):
+def _prepare(cfg: GeneratorConfig, seed: int, index: int, timer=NO_TIMER):
     """Stage 1 (helper thread): sample the spec and make its meshes and textures, which
     land in the builder's caches so the render stage only uploads them."""
     from relight.scene import build
-    spec = sample_scene(cfg, seed, index)
-    meshes = [build.object_mesh(o) for o in spec.objects]
-    for params in spec.room.wall_textures + (spec.room.floor_texture,):
-        build.texture(params, spec.room.texture_res)
+    with timer.image(index):
+        with timer.stage("scene sampling"):
+            spec = sample_scene(cfg, seed, index)
+        with timer.stage("meshes"):
+            meshes = [build.object_mesh(o) for o in spec.objects]
+        with timer.stage("textures"):
+            for params in spec.room.wall_textures + (spec.room.floor_texture,):
+                build.texture(params, spec.room.texture_res)
     return spec, meshes
 
 
-def _write(out: str, spec: SceneSpec, image: np.ndarray, split: str) -> dict:
+def _write(out: str, spec: SceneSpec, image: np.ndarray, split: str, timer=NO_TIMER) -> dict:
     """Stage 3 (writer thread): the scene file, EXR and PNG, each atomically; returns
     the record to append once all three are in place."""
     from relight.imageio import write_exr, write_png
@@ -103,9 +109,12 @@ def _write(out: str, spec: SceneSpec, image: np.ndarray, split: str) -> dict:
     paths = [os.path.join(out, sub, f"{spec.id}{ext}") for sub, ext in
              (("scenes", ".json"), ("exr", ".exr"), ("images", ".png"))]
     try:
-        write_text(paths[0], spec.to_json())
-        write_exr(paths[1], image)
-        write_png(paths[2], image)
+        with timer.stage("write: scene JSON"):
+            write_text(paths[0], spec.to_json())
+        with timer.stage("write: EXR"):
+            write_exr(paths[1], image)
+        with timer.stage("write: PNG"):
+            write_png(paths[2], image)
     except BaseException:   # no record will name them: leave no file of this image behind
         for path in paths:
             with contextlib.suppress(OSError):
@@ -114,42 +123,72 @@ def _write(out: str, spec: SceneSpec, image: np.ndarray, split: str) -> dict:
     return record_for(spec, split)
 
 
+class _Inline:
+    """An executor that runs each task at once in the calling thread (``overlap=False``)."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    @staticmethod
+    def submit(fn, *args, **kwargs) -> Future:
+        future = Future()
+        try:
+            future.set_result(fn(*args, **kwargs))
+        except BaseException as exc:  # noqa: BLE001 - handed to .result(), as a thread would
+            future.set_exception(exc)
+        return future
+
+
 def _pipeline(out: str, cfg: GeneratorConfig, seed: int, indices: list[int], on_record,
-              builder=None) -> None:
+              builder=None, timer=NO_TIMER, overlap: bool = True) -> None:
     """Generate ``indices`` in order with three overlapping stages: prepare the next
     scene and write the previous image while Mitsuba renders the current one.
     ``on_record(record, render_s)`` is called in index order from the writer thread,
     only after the image's files are complete. ``builder``: a SceneBuilder to reuse
-    (its loaded templates) across calls; a new one by default."""
+    (its loaded templates) across calls; a new one by default. ``timer``: a
+    :class:`~relight.timing.StageTimer` to time each stage; ``overlap=False``
+    runs every stage in this thread, one after the other (same files; for profiling)."""
     from concurrent.futures import ThreadPoolExecutor
 
     from relight.scene.build import SceneBuilder
     builder = builder or SceneBuilder()
-    with ThreadPoolExecutor(1, thread_name_prefix="prepare") as prep, \
-            ThreadPoolExecutor(1, thread_name_prefix="write") as writer:
+    pool = (lambda name: ThreadPoolExecutor(1, thread_name_prefix=name)) if overlap else (lambda name: _Inline())
+    with pool("prepare") as prep, pool("write") as writer:
         pending_writes = []
-        next_prep = prep.submit(_prepare, cfg, seed, indices[0]) if indices else None
+        with timer.stage("hand-off to helper threads"):   # the first call starts the thread
+            next_prep = prep.submit(_prepare, cfg, seed, indices[0], timer) if indices else None
         for k in range(len(indices)):
-            spec, meshes = next_prep.result()
-            if k + 1 < len(indices):
-                next_prep = prep.submit(_prepare, cfg, seed, indices[k + 1])
-            template = builder.template(spec, meshes)
-            t0 = time.perf_counter()
-            image = template.render(spec.render.spp, spec.render.seed)
-            render_s = time.perf_counter() - t0
+            with timer.image(indices[k]):
+                with timer.stage("wait: prepare"):
+                    spec, meshes = next_prep.result()
+                if k + 1 < len(indices):
+                    with timer.stage("hand-off to helper threads"):
+                        next_prep = prep.submit(_prepare, cfg, seed, indices[k + 1], timer)
+            with timer.image(indices[k]):
+                template = builder.template(spec, meshes, timer=timer)
+                t0 = time.perf_counter()
+                image = template.render(spec.render.spp, spec.render.seed, timer=timer)
+                render_s = time.perf_counter() - t0
 
-            def write_and_record(spec=spec, image=image, render_s=render_s):
-                on_record(_write(out, spec, image, split_of(spec.id, cfg.split)), render_s)
-            pending_writes.append(writer.submit(write_and_record))
-            while len(pending_writes) > 2 or (pending_writes and pending_writes[0].done()):
-                pending_writes.pop(0).result()  # re-raises a writer error here
-        for f in pending_writes:
-            f.result()
+            def write_and_record(spec=spec, image=image, render_s=render_s, index=indices[k]):
+                with timer.image(index):
+                    on_record(_write(out, spec, image, split_of(spec.id, cfg.split), timer), render_s)
+            with timer.image(indices[k]), timer.stage("hand-off to helper threads"):
+                pending_writes.append(writer.submit(write_and_record))
+            with timer.image(indices[k]), timer.stage("wait: writes"):
+                while len(pending_writes) > 2 or (pending_writes and pending_writes[0].done()):
+                    pending_writes.pop(0).result()  # re-raises a writer error here
+        with timer.stage("wait: writes"):
+            for f in pending_writes:
+                f.result()
 
 
 def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
              cfg: GeneratorConfig | None = None, workers: int = 1, progress: bool = True,
-             threads: int | None = None, scheduler=None) -> GenerateStats:
+             threads: int | None = None, scheduler=None, timer=None, overlap: bool = True) -> GenerateStats:
     """Generate (or resume) a dataset of ``count`` images in ``out_dir``.
 
     Args:
@@ -163,6 +202,10 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
         threads: Dr.Jit threads per process (default: cores / workers).
         scheduler: run on Dask instead (:class:`relight.engine.Scheduler` or its text,
             ``local:N`` or an address); ``workers`` is then ignored. Same output.
+        timer: a :class:`relight.timing.StageTimer` that times every stage of
+            every image (one process only: not with ``workers`` or ``scheduler``).
+        overlap: prepare, render and write on three threads (default); ``False`` runs
+            them one after the other (for profiling; same files).
 
     Returns:
         :class:`GenerateStats`: images written and skipped (already there), and where the
@@ -195,6 +238,8 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
         raise DatasetError(f"workers must be >= 1, got {workers}")
     if threads is not None and threads < 1:
         raise DatasetError(f"threads must be >= 1, got {threads}")
+    if timer is not None and (scheduler is not None or workers > 1):
+        raise DatasetError("a stage timer times one process: not with workers or a scheduler")
     if scheduler is not None:
         from relight.engine import as_scheduler
         scheduler = as_scheduler(scheduler)   # a bad one fails here, before the folder is touched
@@ -206,7 +251,8 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
     stats = GenerateStats()
     try:
         try:
-            return _generate_locked(out, count, seed, cfg, workers, progress, threads, stats, scheduler)
+            return _generate_locked(out, count, seed, cfg, workers, progress, threads, stats, scheduler,
+                                    timer or NO_TIMER, overlap)
         except DiskFullError as exc:
             raise DiskFullError(f"{exc}{_room_needed(out, count)}") from None
     except BaseException:
@@ -262,7 +308,7 @@ def _has_records(out: str) -> bool:
 
 def _generate_locked(out: str, count: int, seed: int, cfg: GeneratorConfig, workers: int,
                      progress: bool, threads: int | None, stats: GenerateStats,
-                     scheduler=None) -> GenerateStats:
+                     scheduler=None, timer=NO_TIMER, overlap: bool = True) -> GenerateStats:
     from tqdm import tqdm
     remove_temps(out, ("", "images", "exr", "scenes"))   # left by killed runs (we hold the lock)
     for sub in ("images", "exr", "scenes"):
@@ -292,7 +338,8 @@ def _generate_locked(out: str, count: int, seed: int, cfg: GeneratorConfig, work
     t_start = time.perf_counter()
     with open(manifest_path, "ab") as manifest:
         def append(record, render_s):
-            append_line(manifest, (json.dumps(record) + "\n").encode(), manifest_path)
+            with timer.stage("write: manifest append"):
+                append_line(manifest, (json.dumps(record) + "\n").encode(), manifest_path)
             stats.written += 1
             stats.render_s += render_s
             bar.update(1)
@@ -300,7 +347,7 @@ def _generate_locked(out: str, count: int, seed: int, cfg: GeneratorConfig, work
         if scheduler is not None:
             _run_engine(scheduler, user_threads, out, cfg, seed, todo, append, stats, progress)
         else:
-            _pipeline(out, cfg, seed, todo, append)
+            _pipeline(out, cfg, seed, todo, append, timer=timer, overlap=overlap)
     stats.total_s = time.perf_counter() - t_start
     bar.close()
     return stats

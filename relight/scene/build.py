@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from relight import backend, frames, render
+from relight.timing import NO_TIMER
 from relight.scene import bsdf as rough_bsdf
 from relight.scene import shapes, textures
 from relight.scene.spec import ObjectSpec, SceneFileError, SceneSpec
@@ -213,8 +214,15 @@ class SceneTemplate:
         self.params = mi.traverse(self.scene)
         self._faces_written = [None] * len(key.slots)
 
-    def apply(self, spec: SceneSpec, meshes: list[shapes.Mesh]) -> None:
-        """Write ``spec`` (with its object meshes, in order) into the loaded scene."""
+    def apply(self, spec: SceneSpec, meshes: list[shapes.Mesh], timer=NO_TIMER) -> None:
+        """Write ``spec`` (with its object meshes, in order) into the loaded scene
+        (``timer``: a :class:`~relight.timing.StageTimer` for the two steps)."""
+        with timer.stage("template: parameters"):
+            self._write_params(spec, meshes)
+        with timer.stage("template: update + acceleration structure", sync=True):
+            self.params.update()
+
+    def _write_params(self, spec: SceneSpec, meshes: list[shapes.Mesh]) -> None:
         mi = backend.mitsuba()
         p = self.params
         cam = spec.camera
@@ -254,7 +262,6 @@ class SceneTemplate:
             if self._faces_written[i] is None or not np.array_equal(self._faces_written[i], faces):
                 p[f"obj{i}.faces"] = mi.UInt32(faces.astype(np.uint32).ravel())
                 self._faces_written[i] = faces
-        p.update()
 
     def set_light(self, position_m, intensity) -> None:
         """Move the point light and set its radiant intensity (W/sr per channel);
@@ -265,9 +272,9 @@ class SceneTemplate:
         self.params["light.position"] = mi.Point3f(*[float(x) for x in position_m])
         self.params["light.intensity.value"] = mi.Color3f(*[float(x) for x in intensity])
 
-    def render(self, spp: int, seed: int) -> np.ndarray:
+    def render(self, spp: int, seed: int, timer=NO_TIMER) -> np.ndarray:
         """Render the current state: ``(res, res, 3)`` float32 linear RGB."""
-        return render.render_scene(self.scene, spp, seed, self.key.sampler)
+        return render.render_scene(self.scene, spp, seed, self.key.sampler, timer=timer)
 
     def render_under(self, position_m, intensity, spp: int, seed: int) -> np.ndarray:
         """Move the point light to ``position_m`` with radiant ``intensity`` (W/sr per
@@ -316,8 +323,9 @@ class SceneBuilder:
         return self.template(spec, [object_mesh(o) for o in spec.objects], envmap_shape)
 
     def template(self, spec: SceneSpec, meshes: list[shapes.Mesh],
-                 envmap_shape: tuple[int, int] | None = None) -> SceneTemplate:
-        """Like :meth:`template_for` with the object meshes already made."""
+                 envmap_shape: tuple[int, int] | None = None, timer=NO_TIMER) -> SceneTemplate:
+        """Like :meth:`template_for` with the object meshes already made (``timer``: a
+        :class:`~relight.timing.StageTimer`)."""
         if len(meshes) > N_OBJECT_SLOTS:
             raise SceneFileError(f"at most {N_OBJECT_SLOTS} objects per scene, got {len(meshes)}")
         key = template_key(spec, meshes, envmap_shape)
@@ -325,8 +333,9 @@ class SceneBuilder:
         if template is None:
             if len(self._templates) >= self.max_templates:
                 self._templates.pop(next(iter(self._templates)))
-            template = self._templates[key] = SceneTemplate(key)
-        template.apply(spec, meshes)
+            with timer.stage("template: load (new structure)", sync=True):
+                template = self._templates[key] = SceneTemplate(key)
+        template.apply(spec, meshes, timer)
         return template
 
     def render(self, spec: SceneSpec) -> np.ndarray:
