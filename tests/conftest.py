@@ -111,3 +111,9 @@ def assert_same_draws(a, b, atol: float = DRAWS_ATOL, rtol: float = DRAWS_ATOL) 
     """Assert :func:`same_draws_mismatch` finds no difference (the message names it)."""
     mismatch = same_draws_mismatch(a, b, atol, rtol)
     assert mismatch is None, mismatch
+
+
+def truth_entries(records: list[dict]) -> list[dict]:
+    """Predictions entries that give each record's true light (pan_rel, tilt, rgb)."""
+    return [{"id": r["id"], "pan_deg": r["pan_rel_deg"], "tilt_deg": r["light"]["tilt_deg"],
+             "rgb": r["light"]["rgb"]} for r in records]

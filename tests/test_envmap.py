@@ -276,8 +276,8 @@ def records(dataset):
 
 
 def _gt_entries(records):
-    return [{"id": r["id"], "pan_deg": r["pan_rel_deg"], "tilt_deg": r["light"]["tilt_deg"],
-             "rgb": r["light"]["rgb"]} for r in records]
+    from conftest import truth_entries
+    return truth_entries(records)
 
 
 def _cli(argv, capfd):
