@@ -53,29 +53,34 @@ def _constant_guess(truth: np.ndarray) -> dict:
             "cone90_coverage": float("nan"), "ood_share": 0.0}
 
 
+def _count(folder: str) -> int:
+    """Records in a dataset folder's manifest (0 where there is none yet)."""
+    path = os.path.join(folder, "manifest.jsonl")
+    if not os.path.exists(path):
+        return 0
+    with open(path) as f:
+        return sum(1 for line in f if line.strip())
+
+
 def ensure_devset(root: str, n: int) -> tuple[str | None, str | None, str | None]:
     """The Mitsuba dev set, its Cycles twin and the Cycles twin through Blender's default AgX
     view transform, under ``root`` (made when missing and possible)."""
     from relight.scene.blender import blender_python
     mitsuba, cycles = os.path.join(root, "devset-mitsuba"), os.path.join(root, "devset-cycles")
     relight_cli = [sys.executable, "-m", "relight"]
-    if not os.path.exists(os.path.join(mitsuba, "manifest.jsonl")) or \
-            sum(1 for _ in open(os.path.join(mitsuba, "manifest.jsonl"))) < n:
+    if _count(mitsuba) < n:
         print(f"making {mitsuba}: relight generate --count {n} --seed {DEVSET_SEED} (default rooms, 128 px)")
         subprocess.run(relight_cli + ["generate", "--count", str(n), "--seed", str(DEVSET_SEED), "--out", mitsuba,
                                       "--quiet"], check=True)
     if blender_python() is None:
         print("Cycles dev set: skipped (no Blender environment; run scripts/setup_blender.sh)")
         return mitsuba, None, None
-    have = sum(1 for _ in open(os.path.join(cycles, "manifest.jsonl"))) if \
-        os.path.exists(os.path.join(cycles, "manifest.jsonl")) else 0
-    if have < n:
+    if _count(cycles) < n:
         print(f"making {cycles}: benchmarks/cycles_twin.py {mitsuba} --limit {n} (resumable)")
         subprocess.run([sys.executable, os.path.join(REPO, "benchmarks", "cycles_twin.py"), mitsuba,
                         "--out", cycles, "--limit", str(n)], check=True)
     agx = os.path.join(root, "devset-cycles-agx")
-    if not os.path.exists(os.path.join(agx, "manifest.jsonl")) or \
-            sum(1 for _ in open(os.path.join(agx, "manifest.jsonl"))) < n:
+    if _count(agx) < n:
         print(f"making {agx}: benchmarks/cycles_twin.py {cycles} --view-transform AgX")
         subprocess.run([sys.executable, os.path.join(REPO, "benchmarks", "cycles_twin.py"), cycles,
                         "--out", agx, "--view-transform", "AgX"], check=True)

@@ -236,3 +236,15 @@ def test_fine_tuning_drops_a_stale_ood_detector():
     assert plain.config.ood_dims == 0 and not any(k.startswith("ood_") for k in plain.state_dict())
     for k, v in plain.state_dict().items():
         assert torch.equal(v, fitted.state_dict()[k]), k
+
+
+def test_resuming_an_older_run_with_a_camera_head_is_one_error(tmp_path):
+    """A run saved before ``camera_weight`` existed had none (0.0): resuming it with a camera
+    head is refused with a TrainingError naming the setting, never a KeyError."""
+    from relight.errors import TrainingError
+    from relight.net.train import TrainConfig, _check_resume_compatible
+    cfg = TrainConfig(data_dir=str(tmp_path), camera_weight=1.0)
+    saved = {k: v for k, v in cfg.to_dict().items() if k != "camera_weight"}
+    with pytest.raises(TrainingError, match="camera_weight was 0.0"):
+        _check_resume_compatible(saved, cfg)
+    _check_resume_compatible(saved, dataclasses.replace(cfg, camera_weight=0.0))   # the same run: fine

@@ -56,12 +56,13 @@ def _scores(net, e: torch.Tensor) -> np.ndarray:
     return torch.sqrt((z ** 2).mean(1) + residual.clamp(min=0) / net.ood_residual.double()).numpy()
 
 
-def ood_scores(model, x: torch.Tensor) -> np.ndarray | None:
-    """OOD score of each input ``(N,)`` (None for a model without a fitted detector)."""
+def ood_scores(model, x: torch.Tensor | None, embedding: torch.Tensor | None = None) -> np.ndarray | None:
+    """OOD score of each input ``(N,)`` (None for a model without a fitted detector);
+    ``embedding``: the inputs' embeddings when the caller has them (``x`` is then not read)."""
     net = _net(model)
     if not getattr(net.config, "ood_dims", 0):
         return None
-    return _scores(net, embeddings(net, x))
+    return _scores(net, embedding if embedding is not None else embeddings(net, x))
 
 
 def fit_ood(model, x: torch.Tensor, dims: int = OOD_DIMS, quantile: float = OOD_QUANTILE):
@@ -98,14 +99,13 @@ def fit_ood(model, x: torch.Tensor, dims: int = OOD_DIMS, quantile: float = OOD_
     return grown.eval(), {"ood_dims": dims, "ood_threshold": threshold, "n": n, "quantile": quantile}
 
 
-def ood_fields(model, x: torch.Tensor, embedding: torch.Tensor | None = None) -> list[dict] | None:
+def ood_fields(model, x: torch.Tensor | None, embedding: torch.Tensor | None = None) -> list[dict] | None:
     """Per input: ``ood`` (bool), ``ood_score``; for a flagged image also ``cone90_deg`` =
     :data:`OOD_CONE_DEG`. None for a model without a fitted detector. ``embedding``: the
     inputs' embeddings when the caller has them (no second pass through the encoder)."""
-    net = _net(model)
-    if not getattr(net.config, "ood_dims", 0):
+    scores = ood_scores(model, x, embedding)
+    if scores is None:
         return None
-    scores = _scores(net, embedding if embedding is not None else embeddings(net, x))
     threshold = float(_net(model).ood_threshold)
     out = []
     for s in scores:

@@ -82,11 +82,9 @@ def score_dataset(model, data_dir: str, split: str = "all", limit: int | None = 
     model's own camera tilt where it has a camera head, else the true one),
     ``world_direction_deg`` (Table 1's direction error: decoded with the true camera tilt),
     ``colour_deg``, ``covered``, ``ood``, ``camera_tilt_error_deg``."""
-    import torch
-
     from relight.net.data import LightDataset
     from relight.net.predict import _predict_inputs
-    ds = LightDataset(data_dir, split, _net_res(model), cache=False)
+    ds = LightDataset(data_dir, split, int(model.config.res), cache=False)
     if limit is not None:
         ds.keep_first([min(limit, n) for n in ds.part_sizes()])
     truth = ds.truth()
@@ -97,8 +95,7 @@ def score_dataset(model, data_dir: str, split: str = "all", limit: int | None = 
                          zip(truth["pan_rel_deg"], truth["tilt_deg"], truth["camera_tilt_deg"])]).reshape(-1, 3)
     pred_cam = np.array([p["to_light_camera"] for p in preds], dtype=np.float64).reshape(-1, 3)
     err = metrics.angle_deg(pred_cam, true_cam)
-    with torch.no_grad():
-        y = np.array([p["y"] for p in preds], dtype=np.float64).reshape(-1, 7)
+    y = np.array([p["y"] for p in preds], dtype=np.float64).reshape(-1, 7)
     pan_w, tilt_w = frames.decode_y(y, truth["camera_tilt_deg"])[:2]
     world = metrics.direction_error_deg(pan_w, tilt_w, truth["pan_rel_deg"], truth["tilt_deg"])
     rgb = np.array([p["rgb"] for p in preds], dtype=np.float64).reshape(-1, 3)
@@ -106,10 +103,6 @@ def score_dataset(model, data_dir: str, split: str = "all", limit: int | None = 
             "colour_deg": np.asarray(metrics.colour_error_deg(rgb, truth["rgb"])),
             "covered": _cone_covers(preds, err), "ood": np.array([bool(p.get("ood", False)) for p in preds]),
             "camera_tilt_error_deg": np.abs(np.array([p["camera_tilt_deg"] for p in preds]) - truth["camera_tilt_deg"])}
-
-
-def _net_res(model) -> int:
-    return int(model.config.res)
 
 
 def summary(scores: dict) -> dict:

@@ -129,7 +129,7 @@ def _predict_inputs(model, inputs: list[torch.Tensor], camera_tilt_deg, batch_si
     oods = None
     if with_ood:
         with torch.no_grad():
-            oods = ood_fields(model, torch.stack(inputs), torch.cat(embeds) if one_pass else None)
+            oods = ood_fields(model, None, torch.cat(embeds)) if one_pass else ood_fields(model, torch.stack(inputs))
     out = []
     for i in range(len(inputs)):
         tilt_c = float(np.clip(tilts[i], -89.0, 89.0))

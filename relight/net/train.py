@@ -164,8 +164,11 @@ class TrainConfig:
 def _check_resume_compatible(saved: dict, cfg: TrainConfig) -> None:
     for key in ("res", "batch_size", "seed", "width", "flip", "arch", "kappa_detach", "init", "image_key",
                 "camera_weight"):
-        if saved.get(key, LATER_DEFAULTS.get(key)) != getattr(cfg, key) and (key in saved or key in LATER_DEFAULTS):
-            raise TrainingError(f"cannot resume: {key} was {saved[key]!r} in this run, now {getattr(cfg, key)!r}")
+        if key not in saved and key not in LATER_DEFAULTS:
+            continue
+        was = saved.get(key, LATER_DEFAULTS.get(key))
+        if was != getattr(cfg, key):
+            raise TrainingError(f"cannot resume: {key} was {was!r} in this run, now {getattr(cfg, key)!r}")
 
 
 # Settings added after the first runs: a settings.json without the key means this value.
