@@ -47,7 +47,7 @@ def add_commands(sub) -> None:
                         "address of a running scheduler (tcp://host:8786); workers must see "
                         "--out at the same path (default: this process, see --workers)")
     g.add_argument("--config", default=None, help="JSON file of generator settings")
-    g.add_argument("--mesh-dir", default=None, help="folder of your own .obj/.ply meshes (z up)")
+    g.add_argument("--mesh-dir", default=None, help="folder of your own .obj/.ply meshes (z up), or \"builtin\": the shipped scans and models (relight/assets/meshes)")
     g.add_argument("--preset", choices=["sid2", "sid2-paper", "photo", "mid"], default="sid2",
                    help="sid2 (default): the paper's SID2-style images; sid2-paper: the same rooms with "
                         "the paper group's colour protocol (light colour a temperature of 2000-9900 K in "
@@ -99,7 +99,7 @@ def cmd_generate(args) -> int:
     from relight.generator.sampling import GeneratorConfig
     overrides = dict(res=args.res, spp=args.spp, max_depth=args.max_depth, sampler=args.sampler,
                      target_rmse=args.target_rmse, colour_prior=args.colour_prior, backgrounds=args.backgrounds,
-                     object_parts=args.object_parts, mesh_dir=os.path.abspath(args.mesh_dir) if args.mesh_dir else None)
+                     object_parts=args.object_parts, mesh_dir=args.mesh_dir if args.mesh_dir in (None, "builtin") else os.path.abspath(args.mesh_dir))
     cfg = GeneratorConfig.from_file(args.config, preset=args.preset, **overrides)
     check_outputs([args.out], [args.config, args.mesh_dir])
     if args.scheduler is not None and args.workers != 1:

@@ -21,7 +21,8 @@ backgrounds, pastel part colours (see the block at the end of this module).
 from __future__ import annotations
 
 __all__ = [
-    "read_config_file", "GeneratorConfig", "LEGACY_CONFIG", "mesh_files", "image_rng", "split_of",
+    "read_config_file", "GeneratorConfig", "LEGACY_CONFIG", "BUILTIN_MESHES", "BUILTIN_MESH_DIR", "mesh_files",
+    "image_rng", "split_of", "GLOSSY_WEIGHT", "GLOSS_ALPHA", "METAL_F0",
     "sample_scene",
     "sid2_paper_config", "is_sid2_paper",
 ]
@@ -84,13 +85,16 @@ class GeneratorConfig:
     wall_height_m: float = 80.0
     texture_res: int = 128
     split: tuple[float, float, float] = (0.8, 0.1, 0.1)
-    mesh_dir: str | None = None
+    mesh_dir: str | None = None  # a folder of .obj/.ply meshes, or "builtin": relight/assets/meshes
     mesh_fraction: float = 0.5   # share of objects taken from mesh_dir when given
     # Photo-like variation (None / 0: off, and the draws of every image are exactly as before)
     fov_range_deg: tuple[float, float] | None = None     # field of view drawn per image (else fov_deg)
     view_halfwidth_m: tuple[float, float] | None = None  # half-width of the view at the scene centre,
     #                                                      drawn per image; sets the camera distance
     void_fraction: float = 0.0   # share of scenes on a near-black void (walls and floor of albedo <= VOID_ALBEDO)
+    # Object materials (0: every object matte, and the draws of every image exactly as before)
+    glossy_fraction: float = 0.0  # share of objects with a varnish-like white specular lobe (GLOSSY_WEIGHT)
+    metal_fraction: float = 0.0   # share of objects that are metals (a specular lobe alone, METAL_F0 colours)
 
     def __post_init__(self):
         def rng_ok(name, lo_min, hi_max):
@@ -141,8 +145,12 @@ class GeneratorConfig:
             rng_ok("fov_range_deg", 5, 120)
         if self.view_halfwidth_m is not None:
             rng_ok("view_halfwidth_m", 0.5, 100)
-        if not (isinstance(self.void_fraction, (int, float)) and 0.0 <= self.void_fraction <= 1.0):
-            raise ConfigError(f"void_fraction: expected a number in [0, 1], got {self.void_fraction!r}")
+        for name in ("void_fraction", "glossy_fraction", "metal_fraction", "mesh_fraction"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and not isinstance(v, bool) and 0.0 <= v <= 1.0):
+                raise ConfigError(f"{name}: expected a number in [0, 1], got {v!r}")
+        if self.glossy_fraction + self.metal_fraction > 1.0:
+            raise ConfigError("glossy_fraction + metal_fraction: at most 1")
         if self.mesh_dir is not None and not mesh_files(self.mesh_dir):
             raise ConfigError(f"--mesh-dir {self.mesh_dir}: no .obj or .ply files found")
 
@@ -190,8 +198,16 @@ LEGACY_CONFIG: dict = {"sampler": LEGACY_SAMPLER, "colour_prior": "hsv", "object
                        "backgrounds": "patterns", "light_colour": "planckian"}
 
 
+BUILTIN_MESHES = "builtin"   # mesh_dir value: the meshes shipped in relight/assets/meshes
+BUILTIN_MESH_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "assets", "meshes")
+
+
 def mesh_files(mesh_dir: str) -> list[str]:
-    """Sorted absolute paths of the .obj/.ply files in a folder (not recursive)."""
+    """Sorted absolute paths of the .obj/.ply files in a folder (not recursive);
+    ``"builtin"``: relight's shipped meshes (:data:`BUILTIN_MESH_DIR`, public-domain and
+    CC BY scans and models, each with its licence file beside it)."""
+    if mesh_dir == BUILTIN_MESHES:
+        mesh_dir = BUILTIN_MESH_DIR
     if not os.path.isdir(mesh_dir):
         return []
     return sorted(os.path.abspath(os.path.join(mesh_dir, f)) for f in os.listdir(mesh_dir)
@@ -297,6 +313,8 @@ def sample_scene(cfg: GeneratorConfig, dataset_seed: int, index: int) -> SceneSp
                         seed=int(rng.integers(0, 2 ** 31)), sampler=cfg.sampler)
     if cfg.fov_range_deg is not None or cfg.view_halfwidth_m is not None or cfg.void_fraction > 0:
         camera, room = _photo_draws(rng, cfg, camera, room)   # drawn last: other draws unchanged
+    if cfg.glossy_fraction > 0 or cfg.metal_fraction > 0:
+        objects = [_material_draws(rng, cfg, o) for o in objects]   # after the photo draws
     return SceneSpec(id=f"{index:06d}", camera=camera, light=light, room=room,
                      objects=tuple(objects), render=render, colour_prior=prior)
 
@@ -321,6 +339,30 @@ def _photo_draws(rng: np.random.Generator, cfg: GeneratorConfig, camera: CameraS
         room = dataclasses.replace(room, wall_textures=tuple(dark() for _ in room.wall_textures),
                                    floor_texture=dark())
     return camera, room
+
+
+# Object materials. A glossy object: the diffuse plus a white GGX lobe of weight GLOSSY_WEIGHT
+# (varnish, glazed ceramic, plastic); a metal: the lobe alone, coloured by one of METAL_F0
+# (linear RGB reflectance at normal incidence of common metals, rounded; the usual
+# real-time-rendering tables). GGX alpha log-uniform in GLOSS_ALPHA for both.
+GLOSSY_WEIGHT = (0.04, 0.3)
+GLOSS_ALPHA = (0.08, 0.5)
+METAL_F0 = {"silver": (0.97, 0.96, 0.91), "aluminium": (0.91, 0.92, 0.92), "gold": (1.0, 0.78, 0.34),
+            "copper": (0.96, 0.64, 0.54), "brass": (0.91, 0.78, 0.42), "iron": (0.56, 0.57, 0.58),
+            "chromium": (0.55, 0.56, 0.55), "nickel": (0.66, 0.61, 0.53)}
+
+
+def _material_draws(rng: np.random.Generator, cfg: GeneratorConfig, obj: ObjectSpec) -> ObjectSpec:
+    """One object's material draws (after all others): matte, glossy or metal."""
+    u = rng.uniform()
+    alpha = float(np.round(math.exp(rng.uniform(*np.log(GLOSS_ALPHA))), 4))
+    if u < cfg.metal_fraction:
+        f0 = list(METAL_F0.values())[int(rng.integers(0, len(METAL_F0)))]
+        return dataclasses.replace(obj, gloss=1.0, gloss_alpha=alpha, gloss_rgb=f0)
+    if u < cfg.metal_fraction + cfg.glossy_fraction:
+        weight = float(np.round(rng.uniform(*GLOSSY_WEIGHT), 4))
+        return dataclasses.replace(obj, gloss=weight, gloss_alpha=alpha, gloss_rgb=(1.0, 1.0, 1.0))
+    return obj
 
 
 # --------------------------------------------------------------------------- --preset sid2-paper

@@ -10,7 +10,10 @@ exactly as :mod:`relight.scene.build` builds it for Mitsuba:
   repeating; texture row 0 at v = 0 in both renderers;
 * objects: the same world-space vertices and per-vertex normals (custom normals,
   smooth shading), Diffuse BSDF with the scene's roughness as its ``Roughness`` (both
-  are Fujii's Oren-Nayar with sigma = roughness; see :data:`DIFFERENCES`);
+  are Fujii's Oren-Nayar with sigma = roughness; see :data:`DIFFERENCES`); a glossy
+  object (``gloss`` > 0) mixes it with a GGX Glossy BSDF (Mix Shader, factor ``gloss``,
+  Roughness = sqrt(``gloss_alpha``)), as Mitsuba's ``blendbsdf`` of the diffuse and a
+  ``roughconductor`` with Fresnel factor 1;
 * camera: the same pose (Blender's camera frame is x right, y up, looking down -z,
   i.e. :func:`relight.frames.camera_to_world`) and horizontal field of view;
 * point light: radius 0, power from :func:`point_light_power` (same radiant intensity);
@@ -59,6 +62,8 @@ DIFFERENCES = (
     "Cycles >= 4.3 adds an energy-compensating multiple-scattering term (OpenPBR's EON) to "
     "Fujii's Oren-Nayar for roughness > 0; relight's roughdiffuse (like Cycles <= 4.2) has "
     "only the single-scattering term, so rough bright objects are brighter in Cycles.",
+    "Cycles' Glossy BSDF (GGX) compensates multiple scattering between microfacets; Mitsuba's "
+    "roughconductor does not, so rough glossy lobes (large gloss_alpha) are a little brighter in Cycles.",
 )
 
 
@@ -141,7 +146,11 @@ def _quiet_stdout():
         os.close(saved)
 
 
-def _material(bpy, name: str, color, roughness: float, image=None):
+def _material(bpy, name: str, color, roughness: float, image=None, gloss: float = 0.0,
+              gloss_alpha: float = 0.1, gloss_rgb=(1.0, 1.0, 1.0)):
+    """A Diffuse BSDF material; with ``gloss`` > 0 mixed (factor ``gloss``) with a GGX
+    Glossy BSDF of colour ``gloss_rgb`` and Roughness sqrt(``gloss_alpha``) (Cycles'
+    roughness is the square root of the GGX alpha): the object's ``blendbsdf``."""
     mat = bpy.data.materials.new(name)
     if bpy.app.version < (5, 0, 0):
         mat.use_nodes = True  # always on from Blender 5
@@ -152,7 +161,18 @@ def _material(bpy, name: str, color, roughness: float, image=None):
     diffuse.inputs["Roughness"].default_value = float(roughness)
     out = nt.nodes.new("ShaderNodeOutputMaterial")
     out.target = "CYCLES"
-    nt.links.new(diffuse.outputs["BSDF"], out.inputs["Surface"])
+    surface = diffuse.outputs["BSDF"]
+    if gloss > 0:
+        glossy = nt.nodes.new("ShaderNodeBsdfGlossy")
+        glossy.distribution = "GGX"
+        glossy.inputs["Color"].default_value = (*[float(c) for c in gloss_rgb], 1.0)
+        glossy.inputs["Roughness"].default_value = math.sqrt(float(gloss_alpha))
+        mix = nt.nodes.new("ShaderNodeMixShader")
+        mix.inputs["Fac"].default_value = float(gloss)
+        nt.links.new(diffuse.outputs["BSDF"], mix.inputs[1])
+        nt.links.new(glossy.outputs["BSDF"], mix.inputs[2])
+        surface = mix.outputs["Shader"]
+    nt.links.new(surface, out.inputs["Surface"])
     if image is not None:
         tex = nt.nodes.new("ShaderNodeTexImage")
         tex.image = image
@@ -250,10 +270,15 @@ def export_blender(spec: SceneSpec, blend_path: str | os.PathLike | None = None,
     for i, obj in enumerate(spec.objects):
         mesh = build.object_mesh(obj)
         v, n = build._object_vertices(obj, mesh)
-        mats = [_material(bpy, f"obj{i}" if j == 0 else f"obj{i}_part{j}", rgb, obj.roughness)
+        mats = [_material(bpy, f"obj{i}" if j == 0 else f"obj{i}_part{j}", rgb, obj.roughness,
+                          gloss=obj.gloss, gloss_alpha=obj.gloss_alpha, gloss_rgb=obj.gloss_rgb)
                 for j, rgb in enumerate(obj.colours)]
         labels = build.part_labels(mesh, len(mats)) if len(mats) > 1 else None
-        scene.collection.objects.link(_mesh_object(bpy, f"obj{i}", v, mesh.faces, mats, normals=n,
+        faces = np.asarray(mesh.faces)
+        keep = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])
+        if not keep.all():   # padded meshes (relight/assets) carry degenerate faces no ray hits
+            faces, labels = faces[keep], None if labels is None else labels[keep]
+        scene.collection.objects.link(_mesh_object(bpy, f"obj{i}", v, faces, mats, normals=n,
                                                    material_index=labels))
 
     cam = spec.camera

@@ -5,7 +5,8 @@ at our sizes, so a :class:`SceneTemplate` loads one scene per *structure* (image
 path depth, mesh topologies; rooms of up to 8 walls share 8 wall slots) and every spec of that structure is
 written into it through ``mi.traverse``: wall/floor texture pixels, object vertex
 buffers and materials (a per-face albedo attribute, so multi-coloured objects need no
-extra BSDFs), camera pose and field of view, light position and intensity.
+extra BSDFs; scenes with a glossy object get templates whose object BSDFs blend the
+diffuse with a GGX lobe, so matte scenes render exactly as before), camera pose and field of view, light position and intensity.
 None of these is a kernel literal, so nothing recompiles. Procedural shapes all share
 one mesh topology (:mod:`relight.scene.shapes`), so they share templates.
 
@@ -57,6 +58,7 @@ class TemplateKey:
     slots: tuple[tuple[int, int], ...]  # (vertex count, face count) per object slot
     sampler: str = "independent"        # Mitsuba sampler plugin (render.sampler)
     envmap_shape: tuple[int, int] | None = None   # (H, W): an ``envmap`` emitter, no point light
+    glossy: bool = False    # object BSDFs blend the diffuse with a specular lobe (some object has gloss)
 
 
 def object_mesh(obj: ObjectSpec) -> shapes.Mesh:
@@ -125,7 +127,8 @@ def template_key(spec: SceneSpec, meshes: list[shapes.Mesh],
         slots.append(slots[0] if slots else (shapes.DEFAULT_NU * shapes.DEFAULT_NV, 0))
     return TemplateKey(max(N_WALL_SLOTS, spec.room.n_walls), spec.render.res, spec.render.max_depth,
                        spec.room.texture_res, tuple(slots), spec.render.sampler,
-                       None if envmap_shape is None else (int(envmap_shape[0]), int(envmap_shape[1])))
+                       None if envmap_shape is None else (int(envmap_shape[0]), int(envmap_shape[1])),
+                       any(o.gloss > 0 for o in spec.objects))
 
 
 def wall_to_world(k: int, n_walls: int, inradius_m: float, height_m: float,
@@ -204,8 +207,12 @@ class SceneTemplate:
                                  "bsdf": {"type": "diffuse", "reflectance": bitmap()}}
         for i, (n_vertices, n_faces) in enumerate(key.slots):
             props = mi.Properties()
-            props["bsdf"] = mi.load_dict({"type": rough_bsdf.PLUGIN, "roughness": 0.5,
-                                          "reflectance": {"type": "mesh_attribute", "name": FACE_ALBEDO}})
+            diffuse = {"type": rough_bsdf.PLUGIN, "roughness": 0.5,
+                       "reflectance": {"type": "mesh_attribute", "name": FACE_ALBEDO}}
+            props["bsdf"] = mi.load_dict(diffuse if not key.glossy else {
+                "type": "blendbsdf", "weight": 0.0, "bsdf_0": diffuse,
+                "bsdf_1": {"type": "roughconductor", "material": "none", "distribution": "ggx",
+                           "alpha": 0.1, "specular_reflectance": {"type": "rgb", "value": [1.0, 1.0, 1.0]}}})
             mesh = mi.Mesh(f"obj{i}", n_vertices, max(n_faces, 1), props=props,
                            has_vertex_normals=True, has_vertex_texcoords=False)
             mesh.add_attribute(FACE_ALBEDO, 3, [0.5] * (3 * max(n_faces, 1)))
@@ -248,7 +255,13 @@ class SceneTemplate:
                 v, n = _object_vertices(obj, mesh)
                 faces = mesh.faces
                 p[f"obj{i}.{FACE_ALBEDO}"] = mi.Float(face_albedos(obj, mesh).ravel())
-                p[f"obj{i}.bsdf.roughness"] = mi.Float(obj.roughness)
+                if self.key.glossy:
+                    p[f"obj{i}.bsdf.bsdf_0.roughness"] = mi.Float(obj.roughness)
+                    p[f"obj{i}.bsdf.weight.value"] = mi.Float(obj.gloss)
+                    p[f"obj{i}.bsdf.bsdf_1.alpha.value"] = mi.Float(obj.gloss_alpha)
+                    p[f"obj{i}.bsdf.bsdf_1.specular_reflectance.value"] = mi.Color3f(*obj.gloss_rgb)
+                else:
+                    p[f"obj{i}.bsdf.roughness"] = mi.Float(obj.roughness)
             else:  # park the unused slot: a tiny copy of slot 0 far below the floor
                 v, n = _object_vertices(spec.objects[0], meshes[0]) if spec.objects else (None, None)
                 n_vertices = self.key.slots[i][0]

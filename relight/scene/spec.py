@@ -142,7 +142,14 @@ class ObjectSpec:
     The mesh (procedural ``family`` + ``params``, or ``mesh_path`` for a user file) is
     normalised in object space (centred on the z axis, min z = 0, max horizontal radius
     1), then scaled uniformly by ``size_m``, turned by ``yaw_deg`` about +Z and moved
-    to ``position_m`` = (x, y) on the floor. Material: rough diffuse (Oren-Nayar).
+    to ``position_m`` = (x, y) on the floor. Material: rough diffuse (Oren-Nayar), or,
+    with ``gloss`` > 0, that diffuse blended with a specular lobe.
+
+    ``gloss`` (optional, 0: none): weight w of a GGX microfacet mirror lobe (Fresnel
+    factor 1) of colour ``gloss_rgb`` and GGX alpha ``gloss_alpha``; the material is
+    ``(1 - w) * diffuse + w * specular`` (Mitsuba's ``blendbsdf``; Cycles' Mix Shader of
+    Diffuse and Glossy). A varnished or plastic object: small w, white ``gloss_rgb``; a
+    metal: w = 1 and a metal's reflectance as ``gloss_rgb``.
 
     ``part_reflectances`` (optional, the paper's "random color ... for each mesh texture in
     each object"): K >= 2 linear-RGB albedos; the mesh faces are split into K patches
@@ -158,9 +165,18 @@ class ObjectSpec:
     roughness: float
     mesh_path: str | None = None
     part_reflectances: tuple[tuple[float, float, float], ...] = ()
+    gloss: float = 0.0
+    gloss_alpha: float = 0.1
+    gloss_rgb: tuple[float, float, float] = (1.0, 1.0, 1.0)
 
     def __post_init__(self):
         _finite("object", *self.position_m, self.yaw_deg, self.size_m, *self.reflectance, self.roughness)
+        if not isinstance(self.gloss_rgb, (list, tuple)) or len(self.gloss_rgb) != 3:
+            raise SceneFileError("object: gloss_rgb needs 3 numbers")
+        object.__setattr__(self, "gloss_rgb", tuple(float(v) for v in self.gloss_rgb))
+        _finite("object gloss", self.gloss, self.gloss_alpha, *self.gloss_rgb)
+        if not (0 <= self.gloss <= 1 and 0.001 <= self.gloss_alpha <= 1 and all(0 <= v <= 1 for v in self.gloss_rgb)):
+            raise SceneFileError("object: gloss and gloss_rgb in [0, 1], gloss_alpha in [0.001, 1] expected")
         object.__setattr__(self, "position_m", tuple(float(v) for v in self.position_m))
         object.__setattr__(self, "reflectance", tuple(float(v) for v in self.reflectance))
         if len(self.position_m) != 2 or len(self.reflectance) != 3:
@@ -256,9 +272,11 @@ class SceneSpec:
     # --- JSON ---------------------------------------------------------------------
     def to_dict(self) -> dict:
         d = dataclasses.asdict(self)
-        for o in d["objects"]:   # one-colour objects: no field, as in files written before it
+        for o in d["objects"]:   # one-colour, matte objects: no fields, as in files written before them
             if not o["part_reflectances"]:
                 del o["part_reflectances"]
+            if not o["gloss"]:
+                del o["gloss"], o["gloss_alpha"], o["gloss_rgb"]
         return {"format": d.pop("format"), **d}
 
     def to_json(self) -> str:
@@ -279,7 +297,8 @@ class SceneSpec:
                 light=LightSpec(**{**d["light"], "rgb": tuple(d["light"]["rgb"])}),
                 room=RoomSpec(**room),
                 objects=tuple(ObjectSpec(**{**o, "position_m": tuple(o["position_m"]),
-                                            "reflectance": tuple(o["reflectance"])})
+                                            "reflectance": tuple(o["reflectance"]),
+                                            **({"gloss_rgb": tuple(o["gloss_rgb"])} if "gloss_rgb" in o else {})})
                               for o in d["objects"]),
                 render=RenderSpec(**d.get("render", {})),
                 colour_prior=d.get("colour_prior"),
