@@ -158,7 +158,14 @@ def fit_to_work(scheduler: Scheduler | None, items: int) -> Scheduler | None:
 # --- the command-line options of every verb that runs on the engine -----------------
 
 def scheduler_arg(text: str) -> Scheduler:
-    """The argparse type of ``--scheduler``: :func:`parse_scheduler`, its error one line."""
+    """The argparse type of ``--scheduler``: :func:`parse_scheduler`, its error one line.
+
+    Args:
+        text: the option's value, ``local:N`` or ``tcp://host:8786``.
+
+    Returns:
+        The :class:`Scheduler`; bad text raises ``argparse.ArgumentTypeError``.
+    """
     try:
         return parse_scheduler(text)
     except EngineError as exc:
@@ -166,7 +173,14 @@ def scheduler_arg(text: str) -> Scheduler:
 
 
 def worker_count(text: str) -> int:
-    """The argparse type of ``--workers``: an integer in ``[1, MAX_LOCAL]``."""
+    """The argparse type of ``--workers``: an integer in ``[1, MAX_LOCAL]``.
+
+    Args:
+        text: the option's value.
+
+    Returns:
+        The process count; bad text raises ``argparse.ArgumentTypeError``.
+    """
     try:
         n = int(text)
     except (ValueError, OverflowError):
