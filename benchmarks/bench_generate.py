@@ -51,6 +51,7 @@ import time
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from relight.commands import argtypes as at  # noqa: E402
+from relight.engine import worker_count  # noqa: E402
 
 import dataclasses  # noqa: E402
 
@@ -325,7 +326,7 @@ def main() -> int:
     ap.add_argument("--res", type=at.resolution, default=128)
     ap.add_argument("--spp", type=at.spp, default=None, help="samples per pixel (default: from the target)")
     ap.add_argument("--target-rmse", type=at.relative_rmse, default=noise.DEFAULT_TARGET_RMSE)
-    ap.add_argument("--workers", type=at.workers, default=2, help="also measure this many worker processes (1: skip)")
+    ap.add_argument("--workers", type=worker_count, default=2, help="also measure this many worker processes (1: skip)")
     ap.add_argument("--calibrate", action=argparse.BooleanOptionalAction, default=True,
                     help="print the equal-error sampler table first (default on)")
     ap.add_argument("--cycles", action=argparse.BooleanOptionalAction, default=True,

@@ -32,17 +32,26 @@ Workers must see the input and output folders at the same paths (a shared file s
 
 Dask (``dask[distributed]``, a dependency of relight) is imported only when a
 scheduler is used: ``--scheduler``, or ``generate --workers N`` (``local:N``).
+
+The command-line options live here too, so that following ``--scheduler`` from the
+command line to the engine crosses three files: the command module (which calls
+:func:`add_arguments` and hands :func:`scheduler_from_args` to its library function),
+this module (the options, their checks, ``--workers N`` as ``local:N``, and their use)
+and the library function that passes the scheduler on to :func:`map_shards`.
 """
 from __future__ import annotations
 
 __all__ = [
-    "LOCAL_RE", "CONNECT_TIMEOUT_S", "MAX_SHARD", "SHARDS_PER_WORKER", "Scheduler", "parse_scheduler",
-    "as_scheduler", "local_worker_env", "client", "worker_threads", "dashboard_link", "n_workers", "shards",
+    "LOCAL_RE", "MAX_LOCAL", "CONNECT_TIMEOUT_S", "MAX_SHARD", "SHARDS_PER_WORKER", "Scheduler",
+    "parse_scheduler", "as_scheduler", "for_workers", "fit_to_work", "scheduler_arg", "worker_count",
+    "add_arguments", "scheduler_from_args", "local_worker_env", "client", "worker_threads", "dashboard_link",
+    "n_workers", "shards",
     "worker_cache", "TaskResult", "run_task", "worker_info", "run_shards", "EngineStats", "map_shards",
     "describe", "announce", "map_ordered",
     "ShardPlan",
 ]
 
+import argparse
 import contextlib
 import math
 import os
@@ -53,9 +62,10 @@ import time
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from relight.errors import EngineError, RelightError
+from relight.errors import ConfigError, EngineError, RelightError
 
 LOCAL_RE = re.compile(r"^local:(\d+)$")
+MAX_LOCAL = 256        # worker processes of a local:N cluster (and of --workers N)
 CONNECT_TIMEOUT_S = 20
 MAX_SHARD = 8          # images per task: small enough to balance load and to lose little to a kill
 SHARDS_PER_WORKER = 4  # aim for at least this many tasks per worker
@@ -63,13 +73,21 @@ SHARDS_PER_WORKER = 4  # aim for at least this many tasks per worker
 
 @dataclass(frozen=True)
 class Scheduler:
-    """Where to run: ``local`` worker processes (a LocalCluster) or a scheduler ``address``."""
+    """Where to run: ``local`` worker processes (a LocalCluster) or a scheduler ``address``.
+
+    ``fit_to_work``: ``local`` is an upper bound, what ``--workers N`` asks for: at most
+    one worker per item left, and none (this process) for a single item (see
+    :func:`fit_to_work`); ``--scheduler local:N`` starts N workers whatever the work.
+    """
     local: int = 0
     address: str = ""
+    fit_to_work: bool = False
 
     def __post_init__(self):
         if bool(self.local) == bool(self.address):
             raise EngineError("a scheduler is either local:N or an address, not both or neither")
+        if self.fit_to_work and not self.local:
+            raise EngineError("only a local:N scheduler is fitted to the work")
 
 
 def parse_scheduler(text: str) -> Scheduler:
@@ -79,8 +97,8 @@ def parse_scheduler(text: str) -> Scheduler:
     m = LOCAL_RE.match(text)
     if m:
         n = int(m.group(1))
-        if not 1 <= n <= 256:
-            raise EngineError(f"local:N needs N in [1, 256], got {text!r}")
+        if not 1 <= n <= MAX_LOCAL:
+            raise EngineError(f"local:N needs N in [1, {MAX_LOCAL}], got {text!r}")
         return Scheduler(local=n)
     if text.startswith("local"):
         raise EngineError(f"expected local:N with N a positive integer, got {text!r}")
@@ -96,6 +114,129 @@ def as_scheduler(scheduler) -> Scheduler | None:
     if isinstance(scheduler, str):
         return parse_scheduler(scheduler)
     raise EngineError(f"expected local:N or a scheduler address, got {scheduler!r}")
+
+
+def for_workers(workers: int) -> Scheduler | None:
+    """What ``--workers N`` (``generate(workers=N)``) means on the engine.
+
+    Args:
+        workers: render processes asked for (>= 1).
+
+    Returns:
+        ``None`` for one (this process renders), else ``local:N`` fitted to the work
+        (:func:`fit_to_work`).
+
+    >>> for_workers(1) is None, for_workers(2).local
+    (True, 2)
+    """
+    return Scheduler(local=workers, fit_to_work=True) if workers > 1 else None
+
+
+def fit_to_work(scheduler: Scheduler | None, items: int) -> Scheduler | None:
+    """The scheduler to run ``items`` pieces of work on: a ``--workers N`` scheduler
+    (``fit_to_work``) starts at most one worker per item, and for a single item none
+    (``None``: this process does the work); any other scheduler is returned as it is.
+
+    Args:
+        scheduler: ``None`` or a :class:`Scheduler`.
+        items: pieces of work left (images to render), >= 1.
+
+    Returns:
+        ``Scheduler | None``.
+
+    >>> fit_to_work(for_workers(4), 2).local, fit_to_work(for_workers(4), 1)
+    (2, None)
+    >>> fit_to_work(parse_scheduler("local:4"), 1).local
+    4
+    """
+    if scheduler is None or not scheduler.fit_to_work:
+        return scheduler
+    n = min(scheduler.local, items)
+    return Scheduler(local=n, fit_to_work=True) if n > 1 else None
+
+
+# --- the command-line options of every verb that runs on the engine -----------------
+
+def scheduler_arg(text: str) -> Scheduler:
+    """The argparse type of ``--scheduler``: :func:`parse_scheduler`, its error one line.
+
+    Args:
+        text: the option's value, ``local:N`` or ``tcp://host:8786``.
+
+    Returns:
+        The :class:`Scheduler`; bad text raises ``argparse.ArgumentTypeError``.
+    """
+    try:
+        return parse_scheduler(text)
+    except EngineError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def worker_count(text: str) -> int:
+    """The argparse type of ``--workers``: an integer in ``[1, MAX_LOCAL]``.
+
+    Args:
+        text: the option's value.
+
+    Returns:
+        The process count; bad text raises ``argparse.ArgumentTypeError``.
+    """
+    try:
+        n = int(text)
+    except (ValueError, OverflowError):
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if not 1 <= n <= MAX_LOCAL:
+        raise argparse.ArgumentTypeError(f"expected a process count in [1, {MAX_LOCAL}], got {text!r}")
+    return n
+
+
+def add_arguments(parser, work: str = "the images", workers: bool = False) -> None:
+    """Add ``--scheduler local:N | ADDRESS`` (and with ``workers`` also ``--workers N``) to
+    the parser of a verb that runs on the engine; read them back with
+    :func:`scheduler_from_args`.
+
+    Args:
+        parser: an ``argparse`` (sub)parser.
+        work: what runs on the engine, for the help text ("the re-renders").
+        workers: also add ``--workers N`` (N processes on this machine: ``local:N``).
+    """
+    if workers:
+        parser.add_argument("--workers", type=worker_count, default=1,
+                            help="parallel render processes (default 1)")
+    parser.add_argument("--scheduler", type=scheduler_arg, default=None, metavar="local:N|ADDRESS",
+                        help=f"run {work} on Dask: local:N (N worker processes on this machine, one "
+                             "per GPU when there are GPUs) or the address of a running scheduler "
+                             "(tcp://host:8786; workers must see the files at the same paths); the "
+                             "same output as the default, this process"
+                             + (" (see --workers)" if workers else ""))
+
+
+def scheduler_from_args(args) -> Scheduler | None:
+    """The scheduler the options of :func:`add_arguments` ask for.
+
+    Args:
+        args: parsed arguments with ``scheduler`` (and ``workers`` when the verb has it).
+
+    Returns:
+        The ``--scheduler`` given, else ``local:N`` for ``--workers N`` (N > 1, fitted to
+        the work: :func:`fit_to_work`), else ``None`` (this process).
+
+    Raises:
+        ConfigError: ``--workers`` and ``--scheduler`` both given (one line, exit 2).
+
+    >>> parser = argparse.ArgumentParser()
+    >>> add_arguments(parser, workers=True)
+    >>> scheduler_from_args(parser.parse_args(["--workers", "2"])).local
+    2
+    >>> scheduler_from_args(parser.parse_args(["--scheduler", "tcp://node1:8786"])).address
+    'tcp://node1:8786'
+    >>> scheduler_from_args(parser.parse_args([])) is None
+    True
+    """
+    scheduler, workers = args.scheduler, getattr(args, "workers", 1)
+    if scheduler is not None and workers != 1:
+        raise ConfigError("--workers and --scheduler exclude each other (local:N gives N workers)")
+    return scheduler if scheduler is not None else for_workers(workers)
 
 
 def _import_distributed():

@@ -52,6 +52,65 @@ def test_parse_scheduler():
             parse_scheduler(bad)
 
 
+# every verb on the engine, with its required arguments (parsed only: no file is read)
+ENGINE_VERBS = {
+    "generate": ["generate", "--out", "o"],
+    "compare": ["compare", "p.json", "--out", "o"],
+    "invert": ["invert", "--scene", "s.json", "--image", "i.exr", "--out", "o.json"],
+    "evaluate": ["evaluate", "--data", "d", "--out", "o"],
+    "baseline": ["baseline", "gray-world", "--data", "d", "--out", "o.json"],
+}
+
+
+@pytest.mark.parametrize("verb", sorted(ENGINE_VERBS))
+@pytest.mark.parametrize("bad", ["nonsense", "local:0", "tcp://host"])
+def test_every_engine_verb_refuses_a_bad_scheduler_in_one_line(verb, bad, capsys):
+    from relight.cli import build_parser
+    with pytest.raises(SystemExit) as exc:
+        build_parser().parse_args(ENGINE_VERBS[verb] + ["--scheduler", bad])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and len(err.strip().splitlines()) == 1 and "--scheduler" in err, err
+
+
+@pytest.mark.parametrize("bad", ["0", "-1", "257", "nan", "2.5"])
+def test_bad_workers_is_one_line(bad, capsys):
+    from relight.cli import build_parser
+    with pytest.raises(SystemExit) as exc:
+        build_parser().parse_args(ENGINE_VERBS["generate"] + ["--workers", bad])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and len(err.strip().splitlines()) == 1 and "--workers" in err, err
+
+
+def test_scheduler_from_args_reads_the_engine_options():
+    from relight.cli import build_parser
+    from relight.engine import scheduler_from_args
+    from relight.errors import ConfigError
+
+    def scheduler(verb, *extra):
+        return scheduler_from_args(build_parser().parse_args(ENGINE_VERBS[verb] + list(extra)))
+    two = scheduler("generate", "--workers", "2")
+    assert (two.local, two.address) == (2, "")                       # --workers 2 is local:2
+    assert scheduler("generate") is None and scheduler("generate", "--workers", "1") is None
+    given = scheduler("generate", "--scheduler", "local:3")
+    assert (given.local, given.fit_to_work) == (3, False)
+    for verb in ENGINE_VERBS:
+        assert scheduler(verb) is None
+        assert scheduler(verb, "--scheduler", "tcp://node1:8786").address == "tcp://node1:8786"
+    with pytest.raises(ConfigError, match="exclude each other"):
+        scheduler("generate", "--workers", "2", "--scheduler", "local:2")
+
+
+def test_workers_start_at_most_one_process_per_item():
+    from relight.engine import fit_to_work, for_workers
+    assert fit_to_work(for_workers(4), 10).local == 4
+    assert fit_to_work(for_workers(4), 3).local == 3
+    assert fit_to_work(for_workers(4), 1) is None                # one image: this process renders
+    assert fit_to_work(parse_scheduler("local:4"), 1).local == 4  # --scheduler local:N as given
+    assert fit_to_work(None, 5) is None
+    with pytest.raises(EngineError):
+        parse_scheduler("tcp://a:1").__class__(address="tcp://a:1", fit_to_work=True)
+
+
 def test_the_engine_imports_no_verb():
     """Generic: the verbs pass their task functions in; the engine imports none of them."""
     import ast
@@ -64,7 +123,7 @@ def test_the_engine_imports_no_verb():
     names |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
     ours = {n for n in names if n.startswith("relight")}
     assert ours <= {"relight.errors", "relight.errors.EngineError", "relight.errors.RelightError",
-                    "relight", "relight.backend"}, ours
+                    "relight.errors.ConfigError", "relight", "relight.backend"}, ours
 
 
 def test_shards_cover_indices_once_in_order():

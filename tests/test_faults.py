@@ -773,7 +773,7 @@ def numeric_options():
         for action in sub._actions:
             t = action.type
             if action.option_strings and t is not None and t is not str and \
-                    (t in (int, float) or getattr(t, "__module__", "") == "relight.commands.argtypes"):
+                    (t in (int, float) or getattr(t, "__module__", "") in ("relight.commands.argtypes", "relight.engine")):
                 out.append((verb, action.option_strings[-1]))
     return out
 

@@ -1,16 +1,18 @@
 """Argument types shared by the subcommands: each rejects bad text with one line.
 
-Every numeric option of every verb uses one of these, so zero, negative, NaN, inf and
-absurdly large values are refused by argparse (one line, exit 2) before any work.
+Every numeric option of every verb uses one of these (the engine's ``--workers`` and
+``--scheduler`` live with the engine: :func:`relight.engine.add_arguments`), so zero,
+negative, NaN, inf and absurdly large values are refused by argparse (one line, exit 2)
+before any work.
 """
 from __future__ import annotations
 
 __all__ = [
     "positive_int", "finite_float", "positive_float", "camera_tilt", "rgb", "int_in", "float_in",
     "int_range_in", "MAX_RES", "MAX_SPP", "SEED_LIMIT", "MAX_COUNT", "MAX_RGB", "resolution", "net_resolution",
-    "spp", "max_depth", "seed", "threads", "workers", "loader_workers", "count", "limit", "columns", "epochs",
+    "spp", "max_depth", "seed", "threads", "loader_workers", "count", "limit", "columns", "epochs",
     "batch_size", "patience", "width", "iterations", "learning_rate", "seconds", "minutes", "relative_rmse",
-    "light_pan", "light_tilt", "field_of_view", "object_parts", "scheduler", "add_scheduler_option",
+    "light_pan", "light_tilt", "field_of_view", "object_parts",
     "add_mirror_option", "bounded_rgb", "loss_weights",
     "circle", "OneLineParser", "run_script",
 ]
@@ -123,7 +125,6 @@ spp = int_in(1, MAX_SPP, "a sample count per pixel")
 max_depth = int_in(1, 64, "a path depth")
 seed = int_in(0, SEED_LIMIT - 1, "a seed")
 threads = int_in(1, 1024, "a thread count")
-workers = int_in(1, 256, "a process count")
 loader_workers = int_in(0, 256, "a worker count")
 count = int_in(1, MAX_COUNT, "an image count")   # 0 would make an empty dataset: refused
 limit = int_in(1, 10_000_000, "a count")
@@ -145,24 +146,6 @@ field_of_view = float_in(0.0, 180.0, "a field of view in degrees", open_lo=True,
 def object_parts(text: str) -> tuple[int, int]:
     from relight.scene.shapes import MAX_PARTS
     return int_range_in(1, MAX_PARTS, "a part count")(text)
-
-
-def scheduler(text: str):
-    """``local:N`` or a Dask scheduler address (see :func:`relight.engine.parse_scheduler`)."""
-    from relight.engine import EngineError, parse_scheduler
-    try:
-        return parse_scheduler(text)
-    except EngineError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-
-
-def add_scheduler_option(parser, work: str = "the images") -> None:
-    """``--scheduler local:N | ADDRESS`` of a per-image verb (default: this process)."""
-    parser.add_argument("--scheduler", type=scheduler, default=None, metavar="local:N|ADDRESS",
-                        help=f"run {work} on Dask: local:N (N worker processes on this machine, one "
-                             "per GPU when there are GPUs) or the address of a running scheduler "
-                             "(tcp://host:8786; workers must see the files at the same paths); the "
-                             "same output as the default, this process")
 
 
 def add_mirror_option(parser) -> None:

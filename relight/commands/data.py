@@ -8,6 +8,7 @@ __all__ = [
 import os
 import sys
 
+from relight import engine
 from relight.commands import argtypes as at
 from relight.scene.albedo import PRIORS
 from relight.scene.spec import SAMPLERS
@@ -41,11 +42,7 @@ def add_commands(sub) -> None:
                    help="independently coloured parts per object, N or a range drawn per object "
                         "(the paper colours each mesh part; default 1-32; see README)")
     g.add_argument("--max-depth", type=at.max_depth, default=None, help="path depth (default 4)")
-    g.add_argument("--workers", type=at.workers, default=1, help="parallel render processes (default 1)")
-    g.add_argument("--scheduler", type=at.scheduler, default=None,
-                   help="render on Dask: local:N (N worker processes on this machine) or the "
-                        "address of a running scheduler (tcp://host:8786); workers must see "
-                        "--out at the same path (default: this process, see --workers)")
+    engine.add_arguments(g, "the renders", workers=True)   # --workers N, --scheduler
     g.add_argument("--config", default=None, help="JSON file of generator settings")
     g.add_argument("--mesh-dir", default=None, help="folder of your own .obj/.ply meshes (z up), or \"builtin\": the shipped scans and models (relight/assets/meshes)")
     g.add_argument("--preset", choices=["sid2", "sid2-paper", "photo", "mid"], default="sid2",
@@ -102,11 +99,9 @@ def cmd_generate(args) -> int:
                      object_parts=args.object_parts, mesh_dir=args.mesh_dir if args.mesh_dir in (None, "builtin") else os.path.abspath(args.mesh_dir))
     cfg = GeneratorConfig.from_file(args.config, preset=args.preset, **overrides)
     check_outputs([args.out], [args.config, args.mesh_dir])
-    if args.scheduler is not None and args.workers != 1:
-        from relight.errors import ConfigError
-        raise ConfigError("--workers and --scheduler exclude each other (local:N gives N workers)")
-    stats = generate(args.out, args.count, seed=args.seed, cfg=cfg, workers=args.workers,
-                     progress=not args.quiet, threads=args.threads, scheduler=args.scheduler)
+    scheduler = engine.scheduler_from_args(args)   # --scheduler, or --workers N as local:N
+    stats = generate(args.out, args.count, seed=args.seed, cfg=cfg, progress=not args.quiet,
+                     threads=args.threads, scheduler=scheduler)
     msg = f"{args.out}: {stats.written} images written, {stats.skipped} already there"
     if stats.written:
         msg += f" ({stats.images_per_s:.2f} img/s, total/render time {stats.overhead_ratio:.2f})"

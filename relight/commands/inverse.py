@@ -10,6 +10,7 @@ import dataclasses
 import os
 import sys
 
+from relight import engine
 from relight.commands import argtypes as at
 from relight.dataset import SPLIT_CHOICES as SPLITS
 from relight.inverse.jobs import Job, dataset_jobs, invert_jobs, write_trace_csv
@@ -41,7 +42,7 @@ def add_commands(sub) -> None:
                         "'ad' automatic differentiation with shadow-edge terms (relight.inverse.ad)")
     v.add_argument("--seed", type=at.seed, default=None, help="sampler seed of the fit (default 1)")
     v.add_argument("--quiet", action="store_true", help="no progress bar")
-    at.add_scheduler_option(v, "the fits")
+    engine.add_arguments(v, "the fits")
     v.set_defaults(func=cmd_invert)
 
     b = sub.add_parser("baseline", help="classical colour-constancy baselines (colour only)",
@@ -53,7 +54,7 @@ def add_commands(sub) -> None:
     b.add_argument("--split", choices=SPLITS, default="test", help="dataset split (default test)")
     b.add_argument("--limit", type=at.limit, default=None, help="first N images of the split")
     b.add_argument("--out", required=True, help="predictions file to write")
-    at.add_scheduler_option(b, "the estimates")
+    engine.add_arguments(b, "the estimates")
     b.set_defaults(func=cmd_baseline)
 
 
@@ -82,7 +83,7 @@ def cmd_invert(args) -> int:
     overrides = {"max_iters": args.max_iters, "time_budget_s": args.time_budget, "seed": args.seed}
     cfg = InvertConfig(fit_radius=args.fit_radius, gradient=args.gradient, **{k: v for k, v in overrides.items() if v is not None})
     results = invert_jobs(jobs, args.init, cfg, progress=not args.quiet, model_path=args.model,
-                          scheduler=args.scheduler)
+                          scheduler=engine.scheduler_from_args(args))
     settings = {"init": args.init, "max_iters": cfg.max_iters, "time_budget_s": cfg.time_budget_s,
                 "fit_radius": cfg.fit_radius, "seed": cfg.seed, "gradient": cfg.gradient,
                 "levels": [dataclasses.asdict(lv) for lv in cfg.levels]}
@@ -108,7 +109,7 @@ def cmd_baseline(args) -> int:
     check_file_target(args.out)
     jobs = dataset_jobs(args.data, args.split, args.limit)
     check_outputs([args.out], [j.image_path for j in jobs] + [j.scene_path for j in jobs])
-    entries = estimate_jobs(args.name, jobs, scheduler=args.scheduler)
+    entries = estimate_jobs(args.name, jobs, scheduler=engine.scheduler_from_args(args))
     write_colour_predictions(args.out, entries, dataset=os.path.abspath(args.data), method=args.name)
     err = dataset_colour_errors(entries, args.data)
     known = (f"; colour error against the lights of {len(err)}: mean {err.mean():.2f}, median "

@@ -7,6 +7,7 @@ __all__ = [
 
 import os
 
+from relight import engine
 from relight.commands import argtypes as at
 from relight.commands.argtypes import camera_tilt
 
@@ -94,7 +95,7 @@ def add_commands(sub) -> None:
                    help="which records (default test; 'all' for a fresh test-only dataset)")
     e.add_argument("--out", required=True, help="report folder")
     at.add_mirror_option(e)
-    at.add_scheduler_option(e, "the network")
+    engine.add_arguments(e, "the network")
     e.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("predict", help="predict light direction and colour of images",
@@ -170,7 +171,8 @@ def cmd_evaluate(args) -> int:
     torch.set_num_threads(1)
     model = load_model(args.model, mirror_average=args.mirror_average)
     name = _model_label(args, "shipped model")
-    tables = evaluate(model, args.data, args.out, split=args.split, model_name=name, scheduler=args.scheduler)
+    tables = evaluate(model, args.data, args.out, split=args.split, model_name=name,
+                      scheduler=engine.scheduler_from_args(args))
     print(metrics.format_tables(tables, only_table1=True))
     import json
     with open(os.path.join(args.out, "metrics.json")) as f:

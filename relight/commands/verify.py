@@ -11,6 +11,7 @@ __all__ = [
 import os
 import sys
 
+from relight import engine
 from relight.commands import argtypes as at
 from relight.commands.argtypes import camera_tilt
 from relight.frames import PHOTO_CAMERA_TILT_DEG as DEFAULT_PHOTO_CAMERA_TILT_DEG
@@ -34,7 +35,7 @@ def add_commands(sub) -> None:
                         "floor': the least error any map reaches on that scene, since a map is "
                         "infinitely far and the scene's light is not); one more render per map entry")
     c.add_argument("--quiet", action="store_true", help="no progress bar")
-    at.add_scheduler_option(c, "the re-renders")
+    engine.add_arguments(c, "the re-renders")
     c.set_defaults(func=cmd_compare)
 
     _add_envmap_commands(sub)
@@ -160,7 +161,7 @@ def cmd_compare(args) -> int:
     check_out(out)
     comparison = compare_predictions(args.predictions, data_dir=args.data, limit=args.limit,
                                      skip_bad=args.skip_bad, progress=not args.quiet,
-                                     scheduler=args.scheduler, map_floor=args.map_floor)
+                                     scheduler=engine.scheduler_from_args(args), map_floor=args.map_floor)
     check_outputs([out], [comparison.dataset_dir], replaces_folder=True)
     if not comparison.items:
         first = f" (first: {comparison.bad[0][0]}: {comparison.bad[0][1]})" if comparison.bad else ""

@@ -197,11 +197,13 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
         seed: dataset seed; image ``i`` depends only on (seed, i) and ``cfg``.
         cfg: generator settings (default :class:`GeneratorConfig`).
         workers: processes rendering in parallel (each gets cores / workers threads): more
-            than one runs on the engine's ``local:N`` (:mod:`relight.engine`, needs Dask).
+            than one runs on the engine's ``local:N``, at most one per image left
+            (:func:`relight.engine.for_workers`, needs Dask).
         progress: show a progress bar (images/s) on stderr.
         threads: Dr.Jit threads per process (default: cores / workers).
         scheduler: run on Dask instead (:class:`relight.engine.Scheduler` or its text,
-            ``local:N`` or an address); ``workers`` is then ignored. Same output.
+            ``local:N`` or an address; the command line's is
+            :func:`relight.engine.scheduler_from_args`); ``workers`` is then ignored. Same output.
         timer: a :class:`relight.timing.StageTimer` that times every stage of
             every image (one process only: not with ``workers`` or ``scheduler``).
         overlap: prepare, render and write on three threads (default); ``False`` runs
@@ -240,9 +242,9 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
         raise DatasetError(f"threads must be >= 1, got {threads}")
     if timer is not None and (scheduler is not None or workers > 1):
         raise DatasetError("a stage timer times one process: not with workers or a scheduler")
-    if scheduler is not None:
-        from relight.engine import as_scheduler
-        scheduler = as_scheduler(scheduler)   # a bad one fails here, before the folder is touched
+    from relight import engine
+    # a bad scheduler fails here, before the folder is touched; workers N > 1 is local:N
+    scheduler = engine.as_scheduler(scheduler) if scheduler is not None else engine.for_workers(workers)
     out = os.fspath(out_dir)
     before = set(os.listdir(out)) if os.path.isdir(out) else set()
     card_path = os.path.join(out, CARD)
@@ -251,7 +253,7 @@ def generate(out_dir: str | os.PathLike, count: int, seed: int = 0,
     stats = GenerateStats()
     try:
         try:
-            return _generate_locked(out, count, seed, cfg, workers, progress, threads, stats, scheduler,
+            return _generate_locked(out, count, seed, cfg, progress, threads, stats, scheduler,
                                     timer or NO_TIMER, overlap)
         except DiskFullError as exc:
             raise DiskFullError(f"{exc}{_room_needed(out, count)}") from None
@@ -306,7 +308,7 @@ def _has_records(out: str) -> bool:
     return os.path.isfile(path) and os.path.getsize(path) > 0
 
 
-def _generate_locked(out: str, count: int, seed: int, cfg: GeneratorConfig, workers: int,
+def _generate_locked(out: str, count: int, seed: int, cfg: GeneratorConfig,
                      progress: bool, threads: int | None, stats: GenerateStats,
                      scheduler=None, timer=NO_TIMER, overlap: bool = True) -> GenerateStats:
     from tqdm import tqdm
@@ -322,17 +324,12 @@ def _generate_locked(out: str, count: int, seed: int, cfg: GeneratorConfig, work
     stats.skipped = count - len(todo)
     if not todo:
         return stats
-    cores = os.cpu_count() or 1
-    workers = min(workers, len(todo))
-    if scheduler is None and workers > 1:   # N render processes: the engine's local:N
-        from relight.engine import Scheduler
-        scheduler = Scheduler(local=workers)
-    user_threads = threads
-    threads = threads or max(1, cores // workers)
+    from relight.engine import fit_to_work
+    scheduler = fit_to_work(scheduler, len(todo))   # --workers N: at most one per image left
     renders_here = scheduler is None   # else workers render; this process checks meshes
     if renders_here or cfg.mesh_dir:
         from relight import backend
-        backend.init(threads=threads if renders_here else 1)
+        backend.init(threads=(threads or os.cpu_count() or 1) if renders_here else 1)
         _check_meshes(cfg)   # a bad mesh fails here, before the manifest is touched
     bar = tqdm(total=len(todo), unit="img", disable=not progress, desc="generate", smoothing=0.1)
     t_start = time.perf_counter()
@@ -345,7 +342,7 @@ def _generate_locked(out: str, count: int, seed: int, cfg: GeneratorConfig, work
             bar.update(1)
 
         if scheduler is not None:
-            _run_engine(scheduler, user_threads, out, cfg, seed, todo, append, stats, progress)
+            _run_engine(scheduler, threads, out, cfg, seed, todo, append, stats, progress)
         else:
             _pipeline(out, cfg, seed, todo, append, timer=timer, overlap=overlap)
     stats.total_s = time.perf_counter() - t_start
