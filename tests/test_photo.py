@@ -58,9 +58,30 @@ def test_photo_draws_come_last_so_other_draws_are_unchanged():
         assert b.room.floor_texture != a.room.floor_texture
 
 
+def test_flash_lights_lie_near_the_camera_and_are_drawn_last():
+    """flash_fraction 0.5 over the photo preset: about half the lights lie within
+    flash_cone_deg of the direction to the camera (none below light_tilt_deg's minimum);
+    everything else is the scene drawn without it."""
+    base = GeneratorConfig.from_file(None, preset="photo")
+    flash = dataclasses.replace(base, flash_fraction=0.5, flash_cone_deg=30.0)
+    moved = 0
+    for i in range(N_SCENES):
+        a, b = sample_scene(base, SEED, i), sample_scene(flash, SEED, i)
+        assert a.camera == b.camera and a.room == b.room and a.objects == b.objects and a.render == b.render
+        assert (a.light.r_m, a.light.strength) == (b.light.r_m, b.light.strength)
+        np.testing.assert_allclose(a.light.rgb, b.light.rgb, rtol=1e-12)   # re-normalised: last bits
+        if (a.light.pan_deg, a.light.tilt_deg) != (b.light.pan_deg, b.light.tilt_deg):
+            moved += 1
+            to_cam = frames.direction(b.camera.pan_deg, b.camera.tilt_deg)
+            angle = math.degrees(math.acos(np.clip(frames.direction(b.light.pan_deg, b.light.tilt_deg) @ to_cam, -1, 1)))
+            assert angle <= 30.0 + 0.02 and b.light.tilt_deg >= base.light_tilt_deg[0]
+    assert abs(moved - N_SCENES / 2) <= 4 * math.sqrt(N_SCENES / 4)   # binomial, 4 sd
+
+
 def test_photo_settings_are_validated():
     from relight.errors import ConfigError
-    for bad in ({"void_fraction": 1.5}, {"fov_range_deg": (90.0, 20.0)}, {"view_halfwidth_m": (0.0, 3.0)}):
+    for bad in ({"void_fraction": 1.5}, {"fov_range_deg": (90.0, 20.0)}, {"view_halfwidth_m": (0.0, 3.0)},
+                {"flash_fraction": 1.2}, {"flash_cone_deg": 120.0}):
         with pytest.raises(ConfigError):
             GeneratorConfig(**bad)
 

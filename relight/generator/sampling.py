@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from relight import colour
+from relight import colour, frames
 from relight.scene import albedo, noise, shapes, textures
 from relight.scene.spec import (LEGACY_SAMPLER, MAX_DEPTH, MAX_RES, MAX_SPP, SAMPLERS, CameraSpec, LightSpec,
                                 ObjectSpec, RenderSpec, RoomSpec, SceneSpec)
@@ -95,6 +95,9 @@ class GeneratorConfig:
     # Object materials (0: every object matte, and the draws of every image exactly as before)
     glossy_fraction: float = 0.0  # share of objects with a varnish-like white specular lobe (GLOSSY_WEIGHT)
     metal_fraction: float = 0.0   # share of objects that are metals (a specular lobe alone, METAL_F0 colours)
+    # Lights near the camera (on-camera flash, lamp behind the photographer; 0: off, draws as before)
+    flash_fraction: float = 0.0   # share of scenes whose light lies within flash_cone_deg of the camera's direction
+    flash_cone_deg: float = 40.0
 
     def __post_init__(self):
         def rng_ok(name, lo_min, hi_max):
@@ -145,7 +148,9 @@ class GeneratorConfig:
             rng_ok("fov_range_deg", 5, 120)
         if self.view_halfwidth_m is not None:
             rng_ok("view_halfwidth_m", 0.5, 100)
-        for name in ("void_fraction", "glossy_fraction", "metal_fraction", "mesh_fraction"):
+        if not (isinstance(self.flash_cone_deg, (int, float)) and 0.0 <= self.flash_cone_deg <= 90.0):
+            raise ConfigError(f"flash_cone_deg: expected a number in [0, 90], got {self.flash_cone_deg!r}")
+        for name in ("void_fraction", "glossy_fraction", "metal_fraction", "mesh_fraction", "flash_fraction"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and not isinstance(v, bool) and 0.0 <= v <= 1.0):
                 raise ConfigError(f"{name}: expected a number in [0, 1], got {v!r}")
@@ -315,6 +320,8 @@ def sample_scene(cfg: GeneratorConfig, dataset_seed: int, index: int) -> SceneSp
         camera, room = _photo_draws(rng, cfg, camera, room)   # drawn last: other draws unchanged
     if cfg.glossy_fraction > 0 or cfg.metal_fraction > 0:
         objects = [_material_draws(rng, cfg, o) for o in objects]   # after the photo draws
+    if cfg.flash_fraction > 0 and rng.uniform() < cfg.flash_fraction:   # after the material draws
+        light = _flash_light(rng, cfg, camera, light)
     return SceneSpec(id=f"{index:06d}", camera=camera, light=light, room=room,
                      objects=tuple(objects), render=render, colour_prior=prior)
 
@@ -363,6 +370,28 @@ def _material_draws(rng: np.random.Generator, cfg: GeneratorConfig, obj: ObjectS
         weight = float(np.round(rng.uniform(*GLOSSY_WEIGHT), 4))
         return dataclasses.replace(obj, gloss=weight, gloss_alpha=alpha, gloss_rgb=(1.0, 1.0, 1.0))
     return obj
+
+
+def _flash_light(rng: np.random.Generator, cfg: GeneratorConfig, camera: CameraSpec,
+                 light: LightSpec) -> LightSpec:
+    """The light moved to a direction uniform on the spherical cap of half-angle
+    ``flash_cone_deg`` around the direction from the scene centre to the camera, redrawn
+    while it is below ``light_tilt_deg[0]`` (at most 100 draws; then the camera's own
+    direction). Distance, colour and strength stay as drawn."""
+    to_camera = frames.direction(camera.pan_deg, camera.tilt_deg)
+    u, v = frames.perpendicular_pair(to_camera)
+    cos_cone = math.cos(math.radians(cfg.flash_cone_deg))
+    pan, tilt = camera.pan_deg, camera.tilt_deg
+    for _ in range(100):
+        cos_t = rng.uniform(cos_cone, 1.0)
+        phi = rng.uniform(0.0, 2.0 * math.pi)
+        d = cos_t * to_camera + math.sqrt(max(0.0, 1.0 - cos_t * cos_t)) * (math.cos(phi) * u + math.sin(phi) * v)
+        _, p, t = frames.cartesian_to_spherical(d)
+        if cfg.light_tilt_deg[0] <= float(t) <= 90.0:
+            pan, tilt = float(p), float(t)
+            break
+    return dataclasses.replace(light, pan_deg=float(np.round(frames.wrap360(pan), 2)),
+                               tilt_deg=float(np.round(tilt, 2)))
 
 
 # --------------------------------------------------------------------------- --preset sid2-paper
