@@ -149,3 +149,74 @@ def test_cycles_matches_mitsuba_on_a_glossy_object(mi, tmp_path):
     cycles, mitsuba = read_exr(exr), SceneBuilder().render(spec)
     assert cycles.mean() / mitsuba.mean() == pytest.approx(1.0, abs=0.02)
     assert blender.relative_rmse(cycles, mitsuba) < 0.06
+
+
+# ----------------------------------------------------------------------------- sky fill
+def _low_walls(spec):
+    """The scene with walls 1 m high (at 110 m they hide 0.5 degrees of the sky)."""
+    return dataclasses.replace(spec, room=dataclasses.replace(spec.room, height_m=1.0))
+
+
+def test_sky_fill_lights_the_floor_as_its_closed_form(mi):
+    """A Lambert floor of albedo rho under the whole sky has radiance rho * L_sky: the
+    bottom image rows (floor, far from the sphere) gain exactly that when the fill is on,
+    and twice the fill gives twice the gain."""
+    from relight.scene.build import SceneBuilder
+    base = _low_walls(sphere_scene(res=24, spp=256, seed=4))
+    builder = SceneBuilder()
+
+    def floor(ambient):
+        spec = dataclasses.replace(base, light=dataclasses.replace(base.light, ambient=ambient))
+        return builder.render(spec)[-4:].mean(axis=(0, 1)), spec.light.sky_radiance
+
+    off, _ = floor(0.0)
+    on, sky = floor(0.3)
+    on2, sky2 = floor(0.6)
+    rho = 0.5   # plain_texture's grey
+    np.testing.assert_allclose(on - off, rho * sky, rtol=0.03)
+    np.testing.assert_allclose(on2 - off, 2 * (on - off), rtol=0.03)
+    np.testing.assert_allclose(sky2, 2 * sky, rtol=1e-12)
+
+
+def test_sky_fill_in_scene_files_and_draws():
+    base = sphere_scene()
+    assert "ambient" not in json.loads(base.to_json())["light"]   # files without it read as before
+    lit = dataclasses.replace(base, light=dataclasses.replace(base.light, ambient=0.25))
+    assert SceneSpec.from_json(lit.to_json()) == lit
+    d = json.loads(lit.to_json())
+    d["light"]["ambient"] = -1.0
+    with pytest.raises(SceneFileError):
+        SceneSpec.from_dict(d)
+    # white light: the sky's irradiance pi * L is ambient times the light's per-channel irradiance
+    white = dataclasses.replace(lit, light=dataclasses.replace(lit.light, rgb=(1.0, 1.0, 1.0)))
+    np.testing.assert_allclose(math.pi * white.light.sky_radiance, 0.25 * white.light.strength, rtol=1e-12)
+    plain, filled = GeneratorConfig(), GeneratorConfig(ambient_fraction=0.5, ambient_ratio=(0.1, 0.2))
+    n_filled = 0
+    for i in range(60):
+        a, b = sample_scene(plain, SEED, i), sample_scene(filled, SEED, i)
+        assert a.objects == b.objects and a.camera == b.camera and a.room == b.room
+        assert (a.light.pan_deg, a.light.tilt_deg, a.light.strength) == (b.light.pan_deg, b.light.tilt_deg,
+                                                                          b.light.strength)
+        if b.light.ambient:
+            n_filled += 1
+            assert 0.1 <= b.light.ambient <= 0.2
+    assert abs(n_filled - 30) <= 4 * math.sqrt(15)
+    with pytest.raises(ConfigError):
+        GeneratorConfig(ambient_ratio=(0.5, 0.1))
+
+
+@needs_blender
+def test_cycles_matches_mitsuba_with_a_sky_fill(mi, tmp_path):
+    """The sky fill exports as the world's background colour (strength 1)."""
+    from relight.cli import main
+    from relight.imageio import read_exr
+    from relight.scene import blender
+    from relight.scene.build import SceneBuilder
+    base = _low_walls(sphere_scene(res=24, spp=256, seed=3))
+    spec = dataclasses.replace(base, light=dataclasses.replace(base.light, ambient=0.4))
+    scene, exr = tmp_path / "s.json", tmp_path / "s.exr"
+    spec.save(scene)
+    assert main(["export-blender", str(scene), "--out", str(tmp_path / "s.blend"), "--render", str(exr)]) == 0
+    cycles, mitsuba = read_exr(exr), SceneBuilder().render(spec)
+    assert cycles.mean() / mitsuba.mean() == pytest.approx(1.0, abs=0.02)
+    assert blender.relative_rmse(cycles, mitsuba) < 0.06

@@ -98,6 +98,9 @@ class GeneratorConfig:
     # Lights near the camera (on-camera flash, lamp behind the photographer; 0: off, draws as before)
     flash_fraction: float = 0.0   # share of scenes whose light lies within flash_cone_deg of the camera's direction
     flash_cone_deg: float = 40.0
+    # Sky fill (0: off, draws as before): a share of scenes gets a uniform sky of the light's colour
+    ambient_fraction: float = 0.0
+    ambient_ratio: tuple[float, float] = (0.05, 0.5)   # its irradiance over the light's (LightSpec.ambient)
 
     def __post_init__(self):
         def rng_ok(name, lo_min, hi_max):
@@ -150,7 +153,9 @@ class GeneratorConfig:
             rng_ok("view_halfwidth_m", 0.5, 100)
         if not (isinstance(self.flash_cone_deg, (int, float)) and 0.0 <= self.flash_cone_deg <= 90.0):
             raise ConfigError(f"flash_cone_deg: expected a number in [0, 90], got {self.flash_cone_deg!r}")
-        for name in ("void_fraction", "glossy_fraction", "metal_fraction", "mesh_fraction", "flash_fraction"):
+        rng_ok("ambient_ratio", 0.0, 10.0)
+        for name in ("void_fraction", "glossy_fraction", "metal_fraction", "mesh_fraction", "flash_fraction",
+                     "ambient_fraction"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and not isinstance(v, bool) and 0.0 <= v <= 1.0):
                 raise ConfigError(f"{name}: expected a number in [0, 1], got {v!r}")
@@ -322,6 +327,8 @@ def sample_scene(cfg: GeneratorConfig, dataset_seed: int, index: int) -> SceneSp
         objects = [_material_draws(rng, cfg, o) for o in objects]   # after the photo draws
     if cfg.flash_fraction > 0 and rng.uniform() < cfg.flash_fraction:   # after the material draws
         light = _flash_light(rng, cfg, camera, light)
+    if cfg.ambient_fraction > 0 and rng.uniform() < cfg.ambient_fraction:   # after the flash draw
+        light = dataclasses.replace(light, ambient=float(np.round(rng.uniform(*cfg.ambient_ratio), 4)))
     return SceneSpec(id=f"{index:06d}", camera=camera, light=light, room=room,
                      objects=tuple(objects), render=render, colour_prior=prior)
 

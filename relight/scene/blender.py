@@ -19,7 +19,8 @@ exactly as :mod:`relight.scene.build` builds it for Mitsuba:
 * point light: radius 0, power from :func:`point_light_power` (same radiant intensity);
 * integrator: ``max_bounces = max_depth - 2`` (:func:`cycles_max_bounces`), box pixel
   filter 1 px wide, Sobol-Burley sampling, no adaptive sampling, denoising, clamping,
-  light tree or light threshold; black world; "Standard" view, linear float output.
+  light tree or light threshold; black world (the sky fill's radiance when
+  ``light.ambient`` > 0, Mitsuba's ``constant`` emitter); "Standard" view, linear float output.
 
 ``bpy`` (PyPI, ``relight[blender]``) needs its own Python 3.11 environment (it pins
 numpy < 2); only this module's functions that say so import it, and the rest of relight
@@ -251,8 +252,9 @@ def export_blender(spec: SceneSpec, blend_path: str | os.PathLike | None = None,
     world = bpy.data.worlds.new("black")
     if bpy.app.version < (5, 0, 0):
         world.use_nodes = True
-    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    sky = spec.light.sky_radiance   # the sky fill (light.ambient), else black
+    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0 if spec.light.ambient > 0 else 0.0
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (*[float(c) for c in sky], 1.0)
     scene.world = world
 
     room = spec.room

@@ -59,6 +59,7 @@ class TemplateKey:
     sampler: str = "independent"        # Mitsuba sampler plugin (render.sampler)
     envmap_shape: tuple[int, int] | None = None   # (H, W): an ``envmap`` emitter, no point light
     glossy: bool = False    # object BSDFs blend the diffuse with a specular lobe (some object has gloss)
+    sky: bool = False       # a uniform environment emitter (the light's sky fill, ``light.ambient`` > 0)
 
 
 def object_mesh(obj: ObjectSpec) -> shapes.Mesh:
@@ -128,7 +129,7 @@ def template_key(spec: SceneSpec, meshes: list[shapes.Mesh],
     return TemplateKey(max(N_WALL_SLOTS, spec.room.n_walls), spec.render.res, spec.render.max_depth,
                        spec.room.texture_res, tuple(slots), spec.render.sampler,
                        None if envmap_shape is None else (int(envmap_shape[0]), int(envmap_shape[1])),
-                       any(o.gloss > 0 for o in spec.objects))
+                       any(o.gloss > 0 for o in spec.objects), envmap_shape is None and spec.light.ambient > 0)
 
 
 def wall_to_world(k: int, n_walls: int, inradius_m: float, height_m: float,
@@ -202,6 +203,8 @@ class SceneTemplate:
                       "bsdf": {"type": "diffuse", "reflectance": bitmap(
                           mi.ScalarTransform3f().scale(2.0 * FLOOR_HALF_SIZE_M / FLOOR_TILE_M))}},
         }
+        if key.sky:
+            scene["sky"] = {"type": "constant", "radiance": {"type": "rgb", "value": [0.0, 0.0, 0.0]}}
         for k in range(key.wall_slots):
             scene[f"wall{k}"] = {"type": "rectangle", "to_world": mi.ScalarTransform4f(np.eye(4)),
                                  "bsdf": {"type": "diffuse", "reflectance": bitmap()}}
@@ -237,6 +240,8 @@ class SceneTemplate:
             frames.mitsuba_sensor_to_world(cam.tilt_deg, cam.r_m, cam.pan_deg))
         p["sensor.x_fov"] = cam.fov_deg
         self.set_light(spec.light.position_m, spec.light.intensity)
+        if self.key.sky:
+            p["sky.radiance.value"] = mi.Color3f(*[float(c) for c in spec.light.sky_radiance])
         room = spec.room
         res = room.texture_res
         p["floor.bsdf.reflectance.data"] = mi.TensorXf(_texture(_freeze(room.floor_texture), res))

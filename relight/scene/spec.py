@@ -73,6 +73,11 @@ class LightSpec:
     intensity is ``strength * r_m**2 * sqrt(3) * rgb`` (W/sr), so exposure does not
     depend on the light's distance, and a white light has per-channel intensity
     ``strength * r_m**2``.
+
+    ``ambient`` (optional, 0: none): a sky fill, a uniform environment of the light's
+    colour whose radiance (:attr:`sky_radiance`) gives an unoccluded surface facing up
+    ``ambient`` times the irradiance the light gives a surface facing it. The label is
+    the point light, the dominant one.
     """
     r_m: float
     pan_deg: float
@@ -81,9 +86,12 @@ class LightSpec:
     strength: float = math.pi
     cct_k: float | None = None
     duv: float | None = None
+    ambient: float = 0.0
 
     def __post_init__(self):
-        _finite("light", self.r_m, self.pan_deg, self.tilt_deg, self.strength)
+        _finite("light", self.r_m, self.pan_deg, self.tilt_deg, self.strength, self.ambient)
+        if not 0.0 <= self.ambient <= 10.0:
+            raise SceneFileError(f"light.ambient: expected a number in [0, 10], got {self.ambient!r}")
         rgb = tuple(float(c) for c in self.rgb)
         if len(rgb) != 3:
             raise SceneFileError(f"light.rgb: expected 3 numbers, got {self.rgb!r}")
@@ -103,6 +111,13 @@ class LightSpec:
     def intensity(self) -> np.ndarray:
         """Radiant intensity per channel (W/sr) of the point emitter."""
         return self.strength * self.r_m ** 2 * math.sqrt(3.0) * np.asarray(self.rgb)
+
+    @property
+    def sky_radiance(self) -> np.ndarray:
+        """Radiance per channel (W/(m^2 sr)) of the sky fill: ``ambient * strength *
+        sqrt(3) * rgb / pi``, so that pi times it, the irradiance of a surface under the
+        whole sky, is ``ambient`` times the light's own irradiance at the centre."""
+        return self.ambient * self.strength * math.sqrt(3.0) * np.asarray(self.rgb) / math.pi
 
 
 @dataclass(frozen=True)
@@ -272,6 +287,8 @@ class SceneSpec:
     # --- JSON ---------------------------------------------------------------------
     def to_dict(self) -> dict:
         d = dataclasses.asdict(self)
+        if not d["light"]["ambient"]:   # no sky fill: no field, as in files written before it
+            del d["light"]["ambient"]
         for o in d["objects"]:   # one-colour, matte objects: no fields, as in files written before them
             if not o["part_reflectances"]:
                 del o["part_reflectances"]
