@@ -177,6 +177,55 @@ def test_linear_hdr_picks_the_brighter_blob():
     assert _angle(found.to_light, a) < DIR_TOL_DEG and found.quality["ambiguity"] == 0.0
 
 
+
+def _lit_wall(centre, core_deg=3.5, core=30.0, halo_deg=12.0, halo=0.6):
+    """A lit wall seen in the mirror: its brightest patch (``core_deg`` around ``centre``,
+    clipping in 8-bit) inside a bright surround (``halo_deg``) that does not clip."""
+    c = np.asarray(centre, float) / np.linalg.norm(centre)
+
+    def extra(s):
+        ang = np.degrees(np.arccos(np.clip(s["reflect"] @ c, -1, 1)))
+        return np.where(ang < core_deg, core, np.where(ang < halo_deg, halo, 0.0))
+    return extra
+
+
+def test_a_clipped_patch_of_a_lit_wall_loses_to_the_light_standing_alone():
+    # both clip and both are compact, round and away from the rim; the wall's patch is
+    # even the larger, but it is the brightest part of a surface that continues around it
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 60.0, 8.0)
+    light = np.array([0.35, 0.45, 0.82]) / np.linalg.norm([0.35, 0.45, 0.82])
+    wall = np.array([-0.4, 0.35, 0.85]) / np.linalg.norm([-0.4, 0.35, 0.85])
+    image = _quantise(_render(cam, sphere, light, light_radius_deg=2.5, extra=_lit_wall(wall)))
+    found = pg.locate_highlight(image, cam, sphere, clip_level=1.0)
+    assert found.quality["candidates"] >= 2
+    assert _angle(found.to_light, light) < DIR_TOL_DEG
+    # the share of bright surroundings is what decides: the wall's patch alone is no rival
+    alone = _quantise(_render(cam, sphere, light, light_radius_deg=2.5,
+                              extra=_lit_wall(wall, halo=0.0)))
+    tie = pg.locate_highlight(alone, cam, sphere, clip_level=1.0)
+    assert tie.quality["ambiguity"] > found.quality["ambiguity"]
+
+
+def test_a_bright_surface_touching_a_small_highlight_does_not_pull_it():
+    # a lit floor's reflection runs just below the light's clipped highlight, one darker
+    # row between them (one of its pixels clips too): the highlight's position comes from
+    # the light's own pixels
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 60.0, 6.0)
+    light = np.array([0.3, 0.35, 0.88]) / np.linalg.norm([0.3, 0.35, 0.88])
+    spot, _ = pg.predict_highlight(cam, sphere, light)
+    clean = _quantise(_render(cam, sphere, light, light_radius_deg=2.0))
+    image = clean.copy()
+    x, y = int(spot[0]), int(spot[1])
+    image[y + 3, x - 3:x + 4] = 0.85          # the floor's reflection: a bright streak 3 px below
+    image[y + 3, x + 3] = 1.0                 # clipping at one end
+    ref = pg.locate_highlight(clean, cam, sphere, clip_level=1.0)
+    found = pg.locate_highlight(image, cam, sphere, clip_level=1.0)
+    assert math.dist(found.pixel, ref.pixel) < 0.15
+    assert _angle(found.to_light, light) < DIR_TOL_DEG
+
+
 # ------------------------------------------------------------------ sub-pixel localisation
 def _blob(x0, y0, sigma, amplitude):
     """A lens-blurred point highlight: a Gaussian of ``sigma`` px at ``(x0, y0)``,

@@ -451,9 +451,11 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
         dist = np.hypot(xx - start[0], yy - start[1])
         ring = usable & (dist > radius + 1.0) & (dist <= radius + 3.0)
         level = float(np.percentile(crop[ring], 90)) if ring.sum() >= 4 else background
-        # the other brightest blobs are other candidates (a clipped patch of a lit
-        # surface next to the light's): none of their pixels counts
-        px, py = _soft_window_centroid(crop, usable & ~((cores > 0) & ~best_core), start, level, radius)
+        # only the light's own pixels count: those reached from its core by steps
+        # downhill (its blur falls off monotonically; a lit surface's reflection beside
+        # it, or another candidate, rises again)
+        own = _downhill_from(crop, best_core, usable & ~((cores > 0) & ~best_core), int(math.ceil(radius)) + 2)
+        px, py = _soft_window_centroid(crop, own, start, level, radius)
         px, py = px + x0, py + y0
     at_centroid = surface(camera, sphere, np.array([px]), np.array([py]))
     if compact and at_centroid["hit"][0]:
@@ -482,6 +484,22 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     quality["error_budget_deg"] = {k: round(v, 3) for k, v in budget.items()}
     quality["uncertainty_deg"] = budget["total_deg"]
     return Highlight(to_light, (px, py), quality)
+
+
+def _downhill_from(crop: np.ndarray, seed: np.ndarray, allowed: np.ndarray, steps: int) -> np.ndarray:
+    """Pixels reached from ``seed`` within ``steps`` steps (8-neighbours) through
+    ``allowed`` pixels, each step to a strictly darker pixel than a reached neighbour:
+    a blurred highlight's own pixels, not a brighter structure beside it."""
+    reached = np.asarray(seed, bool).copy()
+    square = np.ones((3, 3), bool)
+    for _ in range(steps):
+        around = ndimage.maximum_filter(np.where(reached, crop, -np.inf), footprint=square, mode="constant",
+                                        cval=-np.inf)
+        new = allowed & ~reached & (crop < around)
+        if not new.any():
+            break
+        reached |= new
+    return reached
 
 
 def _soft_window_centroid(crop: np.ndarray, usable: np.ndarray, start: tuple[float, float], background: float,
