@@ -365,3 +365,31 @@ def test_probe_scene_render_puts_the_highlight_where_the_truth_says():
     centre = (float((win * xs).sum() / win.sum()), float((win * ys).sum() / win.sum()))
     assert math.dist(centre, spot) < 0.5
     assert t["chrome_circle"] == pytest.approx(list(detect.outline_circle(cam, sphere)), abs=1e-6)
+
+
+# ------------------------------------------------------------------ small spheres found
+def test_chrome_outline_grows_past_a_reflection_circle_inside_it():
+    # a mirror sphere on a background about as bright as its rim (a faint outline) shows a
+    # bright reflection whose edge is a strong circle at ~0.78 of its radius; a fit started
+    # there locks onto it, and the outermost-outline search finds the sphere's own
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 60.0, 8.0)
+    to_light = np.array([0.3, 0.4, 0.87])
+
+    def window(s):    # what is reflected within ~100 deg of the view ray back: bright, in wedges
+        r = s["reflect"]
+        wedges = np.sin(5.0 * np.arctan2(r[..., 1], r[..., 0])) > -0.3
+        return np.where((r[..., 2] > -0.2) & wedges, 0.5, 0.0)
+    image = _render(cam, sphere, to_light, extra=window, background=0.3, clip=False)
+    cx, cy, r = detect.outline_circle(cam, sphere)
+    smoothed = detect._edge_image(image)
+    inner, support = detect.refine_sphere(image, cam, pg.sphere_from_circle(cam, cx, cy, 0.78 * r), smoothed,
+                                          first_band_px=2.0)
+    inner_circle = detect.outline_circle(cam, inner)
+    assert inner_circle[2] < 0.9 * r                     # the fit does lock onto the reflection
+    f = detect.sphere_features(image, cam, inner)
+    cand = {"sphere": inner, "circle": inner_circle, "edge_support": support, **f, "chrome": True, "diffuse": False}
+    grown = detect._outermost_outline(image, cam, cand, smoothed)
+    assert abs(grown["circle"][2] - r) < 0.5
+    assert math.dist(grown["circle"][:2], (cx, cy)) < 0.5
+    assert grown["chrome"]

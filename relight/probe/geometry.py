@@ -27,10 +27,12 @@ from __future__ import annotations
 
 __all__ = [
     "HIGHLIGHT_FRACTION", "TIE_FRACTION", "MAX_LIGHT_SPREAD_DEG", "CORE_RIM_PX", "MERGED_FRACTION",
-    "RIM_EXCLUDE_PX", "MAX_RIM_ANGLE_DEG", "ISOLATION_RING_PX", "ISOLATION_LEVEL", "ISOLATION_WEIGHT", "LIT_FRACTION", "DIFFUSE_RIM_FRACTION", "ORTHO_DEPTH",
+    "RIM_EXCLUDE_PX", "MAX_RIM_ANGLE_DEG", "ISOLATION_RING_PX", "ISOLATION_LEVEL", "ISOLATION_WEIGHT",
+    "LIT_FRACTION", "DIFFUSE_RIM_FRACTION", "ORTHO_DEPTH",
     "OUTLINE_LOSS_SCALE_PX", "Camera", "Sphere", "sphere_from_cone", "sphere_from_circle", "fit_sphere",
     "mask_outline_points", "sphere_from_mask", "outline_circle", "outline_polygon", "bounding_box", "surface",
     "reflected_direction", "predict_highlight", "Highlight", "sphere_pixels", "locate_highlight",
+    "highlight_likelihood",
     "diffuse_light",
     "error_budget",
 ]
@@ -346,6 +348,42 @@ def _solid_angle_weights(camera: Camera, sphere: Sphere, xs, ys) -> np.ndarray:
     else:
         j = np.ones_like(j)
     return j
+
+
+def highlight_likelihood(image: np.ndarray, camera: Camera, sphere: Sphere) -> float:
+    """How much the brightest spot on ``sphere`` looks like a small light's mirror
+    highlight: the best score of :func:`_core_scores` (0 a perfect candidate, each unit a
+    clear strike: spread, elongation, pressed against the rim, bright surroundings).
+    A chrome sphere in a room lit by a small light shows one; a circle drawn on a lit,
+    textured floor or wall encloses only patches of that surface.
+
+    Args:
+        image: linear RGB ``(H, W, 3)`` or luminance ``(H, W)``.
+        camera: the camera.
+        sphere: the sphere to look at.
+
+    Returns:
+        The best candidate's score (<= about 0.1), or -10 when the sphere has too few
+        usable pixels or no bright spot.
+    """
+    lum = _luminance(image)
+    try:
+        (x0, y0, x1, y1), usable, s = sphere_pixels(camera, sphere)
+    except ProbeError:
+        return -10.0
+    if usable.sum() < 5:
+        return -10.0
+    crop = lum[y0:y1, x0:x1]
+    peak = float(crop[usable].max())
+    if not peak > 0:
+        return -10.0
+    cores, n_cores = ndimage.label(usable & (crop >= TIE_FRACTION * peak), np.ones((3, 3)))
+    cys, cxs = np.nonzero(cores > 0)
+    footprint_deg = math.degrees(math.sqrt(float(np.median(_solid_angle_weights(
+        camera, sphere, cxs + x0 + 0.5, cys + y0 + 0.5)))))
+    scores, _ = _core_scores(camera, sphere, crop, cores, np.arange(1, n_cores + 1), s, (x0, y0),
+                             MAX_LIGHT_SPREAD_DEG + 3.0 * footprint_deg, None, usable)
+    return float(scores.max())
 
 
 def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np.ndarray | None = None,
