@@ -393,3 +393,24 @@ def test_chrome_outline_grows_past_a_reflection_circle_inside_it():
     assert abs(grown["circle"][2] - r) < 0.5
     assert math.dist(grown["circle"][:2], (cx, cy)) < 0.5
     assert grown["chrome"]
+
+
+def test_a_small_sphere_with_a_highlight_is_proposed_when_the_proposals_overflow(monkeypatch):
+    # strong-edged diffuse discs win the Hough votes; a faint small disc with one bright
+    # pixel (a chrome sphere's highlight) still gets one of the last places
+    ys, xs = np.mgrid[0:H, 0:W] + 0.5
+    img = np.full((H, W), 0.2)
+    discs = [(30, 30, 14), (75, 30, 14), (120, 30, 14), (30, 85, 14), (120, 85, 14)]
+    for cx, cy, r in discs:
+        img[np.hypot(xs - cx, ys - cy) < r] = 0.7
+    small = (75.5, 85.5, 9.0)
+    img[np.hypot(xs - small[0], ys - small[1]) < small[2]] = 0.26
+    img[83, 73] = 1.0
+    image = np.repeat(ndimage.gaussian_filter(img, 0.5)[..., None], 3, -1)
+
+    def found(spots):
+        monkeypatch.setattr(detect, "MAX_CANDIDATES", len(discs))
+        monkeypatch.setattr(detect, "SPOT_PROPOSALS", spots)
+        return any(math.dist(c[:2], small[:2]) < 3 for c in detect.hough_circles(image))
+    assert found(1)
+    assert not found(0)      # on votes alone it is crowded out

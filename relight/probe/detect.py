@@ -20,7 +20,7 @@ from __future__ import annotations
 __all__ = [
     "EDGE_SIGMA_PX", "EDGE_ANGLES", "EDGE_MIN_FRACTION", "REJECT_ROUNDS", "REJECT_SIGMAS", "REJECT_MIN_PX",
     "EDGE_INLIER_PX", "SUPPORT_BAND_FRACTION", "MIN_EDGE_SUPPORT", "MIN_RADIUS_FRACTION",
-    "MAX_RADIUS_FRACTION", "MAX_CANDIDATES", "CHROME_MIN_CONTRAST",
+    "MAX_RADIUS_FRACTION", "MAX_CANDIDATES", "SPOT_PROPOSALS", "CHROME_MIN_CONTRAST",
     "CHROME_MAX_BLOB_FRACTION", "CHROME_MIN_EXCESS", "DIFFUSE_MAX_RESIDUAL", "TRIM_FRACTION",
     "read_probe_image", "load_mask", "edge_points", "refine_sphere", "sphere_features", "hough_circles",
     "find_spheres", "is_chrome", "is_diffuse", "pick_sphere",
@@ -52,6 +52,7 @@ MIN_RADIUS_PX = 7              # detection radii: at least 7 px (spheres down to
 MIN_RADIUS_FRACTION = 0.015    # ... and 1.5% of the image's shorter side
 MAX_RADIUS_FRACTION = 0.45
 MAX_CANDIDATES = 60
+SPOT_PROPOSALS = 20            # ... of which the last 20: the rest's circles with the most highlight-like spot
 GROW_RADII = (1.2, 1.4)         # a chrome candidate: larger concentric outlines tried ...
 GROW_MIN_SUPPORT_RATIO = 0.8   # ... and kept with at least 80% of its edge support,
 GROW_ROUNDS = 3                # ... again from the larger one, up to three times
@@ -327,7 +328,9 @@ def _lambert_fit(normals: np.ndarray, lum: np.ndarray, samples: int = 1500) -> t
 def hough_circles(image: np.ndarray) -> list[tuple[float, float, float]]:
     """Circle candidates ``(cx, cy, r)`` in pixels (pixel-centre convention): OpenCV's
     gradient-orientation Hough transform first (few, well-shaped circles), then the
-    classic one (more, looser), near-duplicates merged, at most :data:`MAX_CANDIDATES`."""
+    classic one (more, looser), near-duplicates merged, at most :data:`MAX_CANDIDATES`
+    (the last :data:`SPOT_PROPOSALS` of them, when there are more, chosen by the
+    brightest spot inside over the median)."""
     import cv2
     img = np.asarray(image, np.float64)[..., :3]
     gray = np.round(_encoded(img * _exposure(img)) @ np.array([0.299, 0.587, 0.114]) * 255).astype(np.uint8)
@@ -351,7 +354,23 @@ def hough_circles(image: np.ndarray) -> list[tuple[float, float, float]]:
             if not any(math.hypot(c[0] - f[0], c[1] - f[1]) < 0.15 * f[2] and abs(c[2] - f[2]) < 0.15 * f[2]
                        for f in found):
                 found.append(c)
-    return found[:MAX_CANDIDATES]
+    if len(found) <= MAX_CANDIDATES:
+        return found
+    # the proposers rank by votes, which a small chrome sphere's faint rim seldom wins:
+    # the last places go to the rest's circles holding the most highlight-like spot
+    # (brightest over median luminance inside), a chrome sphere's mark
+    keep = MAX_CANDIDATES - SPOT_PROPOSALS
+    lum = img.mean(-1)
+    ys, xs = np.mgrid[0:h, 0:w] + 0.5
+
+    def spot(c):
+        x0, x1 = max(int(c[0] - c[2]), 0), min(int(c[0] + c[2]) + 1, w)
+        y0, y1 = max(int(c[1] - c[2]), 0), min(int(c[1] + c[2]) + 1, h)
+        inside = np.hypot(xs[y0:y1, x0:x1] - c[0], ys[y0:y1, x0:x1] - c[1]) < 0.8 * c[2]
+        v = lum[y0:y1, x0:x1][inside]
+        return float(v.max() / max(np.median(v), 1e-6)) if v.size >= 8 else 0.0
+    rest = sorted(found[keep:], key=spot, reverse=True)
+    return found[:keep] + rest[:SPOT_PROPOSALS]
 
 
 def find_spheres(image: np.ndarray, camera: Camera) -> list[dict]:
