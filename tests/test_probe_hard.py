@@ -177,6 +177,55 @@ def test_linear_hdr_picks_the_brighter_blob():
     assert _angle(found.to_light, a) < DIR_TOL_DEG and found.quality["ambiguity"] == 0.0
 
 
+
+def _lit_wall(centre, core_deg=3.5, core=30.0, halo_deg=12.0, halo=0.6):
+    """A lit wall seen in the mirror: its brightest patch (``core_deg`` around ``centre``,
+    clipping in 8-bit) inside a bright surround (``halo_deg``) that does not clip."""
+    c = np.asarray(centre, float) / np.linalg.norm(centre)
+
+    def extra(s):
+        ang = np.degrees(np.arccos(np.clip(s["reflect"] @ c, -1, 1)))
+        return np.where(ang < core_deg, core, np.where(ang < halo_deg, halo, 0.0))
+    return extra
+
+
+def test_a_clipped_patch_of_a_lit_wall_loses_to_the_light_standing_alone():
+    # both clip and both are compact, round and away from the rim; the wall's patch is
+    # even the larger, but it is the brightest part of a surface that continues around it
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 60.0, 8.0)
+    light = np.array([0.35, 0.45, 0.82]) / np.linalg.norm([0.35, 0.45, 0.82])
+    wall = np.array([-0.4, 0.35, 0.85]) / np.linalg.norm([-0.4, 0.35, 0.85])
+    image = _quantise(_render(cam, sphere, light, light_radius_deg=2.5, extra=_lit_wall(wall)))
+    found = pg.locate_highlight(image, cam, sphere, clip_level=1.0)
+    assert found.quality["candidates"] >= 2
+    assert _angle(found.to_light, light) < DIR_TOL_DEG
+    # the share of bright surroundings is what decides: the wall's patch alone is no rival
+    alone = _quantise(_render(cam, sphere, light, light_radius_deg=2.5,
+                              extra=_lit_wall(wall, halo=0.0)))
+    tie = pg.locate_highlight(alone, cam, sphere, clip_level=1.0)
+    assert tie.quality["ambiguity"] > found.quality["ambiguity"]
+
+
+def test_a_bright_surface_touching_a_small_highlight_does_not_pull_it():
+    # a lit floor's reflection runs just below the light's clipped highlight, one darker
+    # row between them (one of its pixels clips too): the highlight's position comes from
+    # the light's own pixels
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 60.0, 6.0)
+    light = np.array([0.3, 0.35, 0.88]) / np.linalg.norm([0.3, 0.35, 0.88])
+    spot, _ = pg.predict_highlight(cam, sphere, light)
+    clean = _quantise(_render(cam, sphere, light, light_radius_deg=2.0))
+    image = clean.copy()
+    x, y = int(spot[0]), int(spot[1])
+    image[y + 3, x - 3:x + 4] = 0.85          # the floor's reflection: a bright streak 3 px below
+    image[y + 3, x + 3] = 1.0                 # clipping at one end
+    ref = pg.locate_highlight(clean, cam, sphere, clip_level=1.0)
+    found = pg.locate_highlight(image, cam, sphere, clip_level=1.0)
+    assert math.dist(found.pixel, ref.pixel) < 0.15
+    assert _angle(found.to_light, light) < DIR_TOL_DEG
+
+
 # ------------------------------------------------------------------ sub-pixel localisation
 def _blob(x0, y0, sigma, amplitude):
     """A lens-blurred point highlight: a Gaussian of ``sigma`` px at ``(x0, y0)``,
@@ -316,3 +365,52 @@ def test_probe_scene_render_puts_the_highlight_where_the_truth_says():
     centre = (float((win * xs).sum() / win.sum()), float((win * ys).sum() / win.sum()))
     assert math.dist(centre, spot) < 0.5
     assert t["chrome_circle"] == pytest.approx(list(detect.outline_circle(cam, sphere)), abs=1e-6)
+
+
+# ------------------------------------------------------------------ small spheres found
+def test_chrome_outline_grows_past_a_reflection_circle_inside_it():
+    # a mirror sphere on a background about as bright as its rim (a faint outline) shows a
+    # bright reflection whose edge is a strong circle at ~0.78 of its radius; a fit started
+    # there locks onto it, and the outermost-outline search finds the sphere's own
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 60.0, 8.0)
+    to_light = np.array([0.3, 0.4, 0.87])
+
+    def window(s):    # what is reflected within ~100 deg of the view ray back: bright, in wedges
+        r = s["reflect"]
+        wedges = np.sin(5.0 * np.arctan2(r[..., 1], r[..., 0])) > -0.3
+        return np.where((r[..., 2] > -0.2) & wedges, 0.5, 0.0)
+    image = _render(cam, sphere, to_light, extra=window, background=0.3, clip=False)
+    cx, cy, r = detect.outline_circle(cam, sphere)
+    smoothed = detect._edge_image(image)
+    inner, support = detect.refine_sphere(image, cam, pg.sphere_from_circle(cam, cx, cy, 0.78 * r), smoothed,
+                                          first_band_px=2.0)
+    inner_circle = detect.outline_circle(cam, inner)
+    assert inner_circle[2] < 0.9 * r                     # the fit does lock onto the reflection
+    f = detect.sphere_features(image, cam, inner)
+    cand = {"sphere": inner, "circle": inner_circle, "edge_support": support, **f, "chrome": True, "diffuse": False}
+    grown = detect._outermost_outline(image, cam, cand, smoothed)
+    assert abs(grown["circle"][2] - r) < 0.5
+    assert math.dist(grown["circle"][:2], (cx, cy)) < 0.5
+    assert grown["chrome"]
+
+
+def test_a_small_sphere_with_a_highlight_is_proposed_when_the_proposals_overflow(monkeypatch):
+    # strong-edged diffuse discs win the Hough votes; a faint small disc with one bright
+    # pixel (a chrome sphere's highlight) still gets one of the last places
+    ys, xs = np.mgrid[0:H, 0:W] + 0.5
+    img = np.full((H, W), 0.2)
+    discs = [(30, 30, 14), (75, 30, 14), (120, 30, 14), (30, 85, 14), (120, 85, 14)]
+    for cx, cy, r in discs:
+        img[np.hypot(xs - cx, ys - cy) < r] = 0.7
+    small = (75.5, 85.5, 9.0)
+    img[np.hypot(xs - small[0], ys - small[1]) < small[2]] = 0.26
+    img[83, 73] = 1.0
+    image = np.repeat(ndimage.gaussian_filter(img, 0.5)[..., None], 3, -1)
+
+    def found(spots):
+        monkeypatch.setattr(detect, "MAX_CANDIDATES", len(discs))
+        monkeypatch.setattr(detect, "SPOT_PROPOSALS", spots)
+        return any(math.dist(c[:2], small[:2]) < 3 for c in detect.hough_circles(image))
+    assert found(1)
+    assert not found(0)      # on votes alone it is crowded out

@@ -20,11 +20,12 @@ from __future__ import annotations
 __all__ = [
     "EDGE_SIGMA_PX", "EDGE_ANGLES", "EDGE_MIN_FRACTION", "REJECT_ROUNDS", "REJECT_SIGMAS", "REJECT_MIN_PX",
     "EDGE_INLIER_PX", "SUPPORT_BAND_FRACTION", "MIN_EDGE_SUPPORT", "MIN_RADIUS_FRACTION",
-    "MAX_RADIUS_FRACTION", "MAX_CANDIDATES", "CHROME_MIN_CONTRAST",
+    "MAX_RADIUS_FRACTION", "MAX_CANDIDATES", "SPOT_PROPOSALS", "CHROME_MIN_CONTRAST",
     "CHROME_MAX_BLOB_FRACTION", "CHROME_MIN_EXCESS", "DIFFUSE_MAX_RESIDUAL", "TRIM_FRACTION",
     "read_probe_image", "load_mask", "edge_points", "refine_sphere", "sphere_features", "hough_circles",
     "find_spheres", "is_chrome", "is_diffuse", "pick_sphere",
-    "outline_fit_px", "constrained_refinement",
+    "outline_fit_px", "constrained_refinement", "GROW_RADII", "GROW_MIN_SUPPORT_RATIO", "GROW_ROUNDS",
+    "PICK_HIGHLIGHT_WEIGHT", "PICK_RADIUS_WEIGHT",
 ]
 
 import math
@@ -34,8 +35,8 @@ import numpy as np
 from scipy import ndimage
 
 from relight.colour import srgb_decode, srgb_encode
-from relight.probe.geometry import (Camera, ProbeError, Sphere, fit_sphere, outline_circle,
-                                    outline_polygon, sphere_from_circle, sphere_pixels)
+from relight.probe.geometry import (Camera, ProbeError, Sphere, fit_sphere, highlight_likelihood,
+                                    outline_circle, outline_polygon, sphere_from_circle, sphere_pixels)
 
 EDGE_SIGMA_PX = 0.7
 EDGE_ANGLES = 360
@@ -51,6 +52,12 @@ MIN_RADIUS_PX = 7              # detection radii: at least 7 px (spheres down to
 MIN_RADIUS_FRACTION = 0.015    # ... and 1.5% of the image's shorter side
 MAX_RADIUS_FRACTION = 0.45
 MAX_CANDIDATES = 60
+SPOT_PROPOSALS = 20            # ... of which the last 20: the rest's circles with the most highlight-like spot
+GROW_RADII = (1.2, 1.4)         # a chrome candidate: larger concentric outlines tried ...
+GROW_MIN_SUPPORT_RATIO = 0.8   # ... and kept with at least 80% of its edge support,
+GROW_ROUNDS = 3                # ... again from the larger one, up to three times
+PICK_HIGHLIGHT_WEIGHT = 0.1    # choosing the chrome sphere: per unit of highlight likelihood (strikes) ...
+PICK_RADIUS_WEIGHT = 0.1       # ... and per unit of log radius (a chrome sphere's reflections are smaller circles)
 RADIUS_HYPOTHESES = (1.0, 0.85, 1.15)  # a Hough circle's radius is often off on a chrome sphere's faint rim
 CHROME_MIN_CONTRAST = 4.0      # chrome: brightest / median sphere pixel at least this,
 CHROME_MAX_BLOB_FRACTION = 0.15  # in a bright region covering at most 15% of the sphere (not a lit side),
@@ -321,7 +328,9 @@ def _lambert_fit(normals: np.ndarray, lum: np.ndarray, samples: int = 1500) -> t
 def hough_circles(image: np.ndarray) -> list[tuple[float, float, float]]:
     """Circle candidates ``(cx, cy, r)`` in pixels (pixel-centre convention): OpenCV's
     gradient-orientation Hough transform first (few, well-shaped circles), then the
-    classic one (more, looser), near-duplicates merged, at most :data:`MAX_CANDIDATES`."""
+    classic one (more, looser), near-duplicates merged, at most :data:`MAX_CANDIDATES`
+    (the last :data:`SPOT_PROPOSALS` of them, when there are more, chosen by the
+    brightest spot inside over the median)."""
     import cv2
     img = np.asarray(image, np.float64)[..., :3]
     gray = np.round(_encoded(img * _exposure(img)) @ np.array([0.299, 0.587, 0.114]) * 255).astype(np.uint8)
@@ -345,7 +354,23 @@ def hough_circles(image: np.ndarray) -> list[tuple[float, float, float]]:
             if not any(math.hypot(c[0] - f[0], c[1] - f[1]) < 0.15 * f[2] and abs(c[2] - f[2]) < 0.15 * f[2]
                        for f in found):
                 found.append(c)
-    return found[:MAX_CANDIDATES]
+    if len(found) <= MAX_CANDIDATES:
+        return found
+    # the proposers rank by votes, which a small chrome sphere's faint rim seldom wins:
+    # the last places go to the rest's circles holding the most highlight-like spot
+    # (brightest over median luminance inside), a chrome sphere's mark
+    keep = MAX_CANDIDATES - SPOT_PROPOSALS
+    lum = img.mean(-1)
+    ys, xs = np.mgrid[0:h, 0:w] + 0.5
+
+    def spot(c):
+        x0, x1 = max(int(c[0] - c[2]), 0), min(int(c[0] + c[2]) + 1, w)
+        y0, y1 = max(int(c[1] - c[2]), 0), min(int(c[1] + c[2]) + 1, h)
+        inside = np.hypot(xs[y0:y1, x0:x1] - c[0], ys[y0:y1, x0:x1] - c[1]) < 0.8 * c[2]
+        v = lum[y0:y1, x0:x1][inside]
+        return float(v.max() / max(np.median(v), 1e-6)) if v.size >= 8 else 0.0
+    rest = sorted(found[keep:], key=spot, reverse=True)
+    return found[:keep] + rest[:SPOT_PROPOSALS]
 
 
 def find_spheres(image: np.ndarray, camera: Camera) -> list[dict]:
@@ -399,6 +424,9 @@ def find_spheres(image: np.ndarray, camera: Camera) -> list[dict]:
             f = sphere_features(image, camera, sphere)
             out.append({"sphere": sphere, "circle": circle, "edge_support": support, **f,
                         "chrome": is_chrome(f), "diffuse": is_diffuse(f)})
+    out = [_outermost_outline(image, camera, c, smoothed) if c["chrome"] else c for c in out]
+    for c in out:     # does its brightest spot look like a small light's highlight?
+        c["highlight"] = highlight_likelihood(image, camera, c["sphere"]) if c["chrome"] else -10.0
     # a circle inside a better supported one is a highlight or a reflection on that sphere
     # (mostly inside: the smaller circle reaches at most 10% of the larger radius beyond it,
     # and is not clearly better supported)
@@ -408,6 +436,51 @@ def find_spheres(image: np.ndarray, camera: Camera) -> list[dict]:
         + c["circle"][2] < o["circle"][2] * 1.1 and o["edge_support"] >= c["edge_support"] - 0.02 for o in out)]
     out.sort(key=lambda c: -c["edge_support"])
     return out
+
+
+def _outermost_outline(image: np.ndarray, camera: Camera, cand: dict, smoothed: np.ndarray) -> dict:
+    """A chrome candidate's outline is the outermost circular edge around it: a mirror
+    sphere's reflections (the horizon of a floor, a window, a bright wall) draw smaller,
+    often stronger, near-concentric circles inside it, and its rim is faint where it
+    mirrors what lies beside it, so a fit may lock onto an inner one. Larger concentric
+    circles (:data:`GROW_RADII` times the radius) are refined; the largest whose edge
+    support (the strongest edge within half the gap to the inner circle) reaches
+    :data:`GROW_MIN_SUPPORT_RATIO` of the candidate's (and :data:`MIN_EDGE_SUPPORT`),
+    which contains it and is still chrome, replaces it, and the search goes on from
+    there (at most :data:`GROW_ROUNDS` times)."""
+    best = cand
+    for _ in range(GROW_ROUNDS):
+        grown = _grow_once(image, camera, best, smoothed)
+        if grown is best:
+            break
+        best = grown
+    return best
+
+
+def _grow_once(image: np.ndarray, camera: Camera, cand: dict, smoothed: np.ndarray) -> dict:
+    """One round of :func:`_outermost_outline`: the largest larger outline around ``cand``, or ``cand``."""
+    cx, cy, r = cand["circle"]
+    best = cand
+    for k in GROW_RADII:
+        try:
+            guess = sphere_from_circle(camera, cx, cy, r * k)
+            sphere, _ = refine_sphere(image, camera, guess, smoothed, first_band_px=max(3.0, 0.12 * r * k))
+        except ProbeError:
+            continue
+        c2 = outline_circle(camera, sphere)
+        if not (c2[2] > best["circle"][2] * 1.08 and math.hypot(c2[0] - cx, c2[1] - cy) + r <= c2[2] * 1.05):
+            continue
+        # its support: the strongest edge in a band reaching halfway to the inner circle
+        # (the inner one may well be stronger: it is a reflection of something bright)
+        band = max(2.0, 0.5 * (c2[2] - r))
+        support = _edge_support(camera, sphere, *edge_points(smoothed, camera, sphere, band, prior=False)[:2])
+        if support < max(MIN_EDGE_SUPPORT, GROW_MIN_SUPPORT_RATIO * cand["edge_support"]):
+            continue
+        f = sphere_features(image, camera, sphere)
+        if is_chrome(f):   # the pair's evidence: the inner circle's support stays
+            best = {"sphere": sphere, "circle": c2, "edge_support": cand["edge_support"], **f, "chrome": True,
+                    "diffuse": is_diffuse(f)}
+    return best
 
 
 def is_chrome(f: dict) -> bool:
@@ -434,11 +507,13 @@ def pick_sphere(candidates: list[dict], kind: str, exclude: list[tuple] = ()) ->
         seen = ", ".join(f"({c['circle'][0]:.0f}, {c['circle'][1]:.0f}, r {c['circle'][2]:.0f})"
                          for c in candidates[:3]) or "none"
         raise ProbeError(f"no {kind} sphere found (circles seen: {seen}); give --{kind}-circle or --{kind}-mask")
-    if kind == "chrome":   # the clearest outline, a bright highlight, a large sphere (a
+    if kind == "chrome":   # the clearest outline, a bright highlight that looks like a small
+        # light's (:func:`relight.probe.geometry.highlight_likelihood`), a large sphere (a
         # chrome sphere's outline is often faint where it reflects what lies beside it, and
         # its reflections show smaller circles inside it)
         return max(pool, key=lambda c: c["edge_support"] + 0.1 * min(math.log10(c["contrast"]), 3.0) / 3.0
-                   + 0.2 * math.log(max(c["circle"][2], 1.0) / 20.0))
+                   + PICK_HIGHLIGHT_WEIGHT * max(c.get("highlight", 0.0), -3.0)
+                   + PICK_RADIUS_WEIGHT * math.log(max(c["circle"][2], 1.0) / 20.0))
     # the clearest outline, the smoothest shading, and (slightly) the larger sphere
     return max(pool, key=lambda c: c["edge_support"] - 0.5 * c["residual"]
                + 0.05 * math.log(max(c["circle"][2], 1.0) / 20.0))

@@ -27,10 +27,12 @@ from __future__ import annotations
 
 __all__ = [
     "HIGHLIGHT_FRACTION", "TIE_FRACTION", "MAX_LIGHT_SPREAD_DEG", "CORE_RIM_PX", "MERGED_FRACTION",
-    "RIM_EXCLUDE_PX", "MAX_RIM_ANGLE_DEG", "LIT_FRACTION", "DIFFUSE_RIM_FRACTION", "ORTHO_DEPTH",
+    "RIM_EXCLUDE_PX", "MAX_RIM_ANGLE_DEG", "ISOLATION_RING_PX", "ISOLATION_LEVEL", "ISOLATION_WEIGHT",
+    "LIT_FRACTION", "DIFFUSE_RIM_FRACTION", "ORTHO_DEPTH",
     "OUTLINE_LOSS_SCALE_PX", "Camera", "Sphere", "sphere_from_cone", "sphere_from_circle", "fit_sphere",
     "mask_outline_points", "sphere_from_mask", "outline_circle", "outline_polygon", "bounding_box", "surface",
     "reflected_direction", "predict_highlight", "Highlight", "sphere_pixels", "locate_highlight",
+    "highlight_likelihood",
     "diffuse_light",
     "error_budget",
 ]
@@ -58,6 +60,9 @@ RIM_BLOB_ANGLE_DEG = 65.0      # a blob whose normals lie beyond this from the v
 SMALL_HIGHLIGHT_PX = 12        # a highlight of at most this many pixels: measured in a soft window
 WINDOW_MARGIN_PX = 1.5         # a compact highlight's centroid window: its core's radius plus 1.5 px (lens blur)
 AMBIGUITY_MARGIN = 0.5         # two highlight candidates within this score of each other: ambiguous
+ISOLATION_RING_PX = (2, 3)     # a candidate's surroundings: pixels 2-3 px from it (past its blur) ...
+ISOLATION_LEVEL = 0.1          # ... whose 90th percentile above 10% of the candidate's peak ...
+ISOLATION_WEIGHT = 1.5         # ... costs 1.5 score units per unit of that share (a lit surface continues)
 
 
 @dataclass(frozen=True)
@@ -345,6 +350,42 @@ def _solid_angle_weights(camera: Camera, sphere: Sphere, xs, ys) -> np.ndarray:
     return j
 
 
+def highlight_likelihood(image: np.ndarray, camera: Camera, sphere: Sphere) -> float:
+    """How much the brightest spot on ``sphere`` looks like a small light's mirror
+    highlight: the best score of :func:`_core_scores` (0 a perfect candidate, each unit a
+    clear strike: spread, elongation, pressed against the rim, bright surroundings).
+    A chrome sphere in a room lit by a small light shows one; a circle drawn on a lit,
+    textured floor or wall encloses only patches of that surface.
+
+    Args:
+        image: linear RGB ``(H, W, 3)`` or luminance ``(H, W)``.
+        camera: the camera.
+        sphere: the sphere to look at.
+
+    Returns:
+        The best candidate's score (<= about 0.1), or -10 when the sphere has too few
+        usable pixels or no bright spot.
+    """
+    lum = _luminance(image)
+    try:
+        (x0, y0, x1, y1), usable, s = sphere_pixels(camera, sphere)
+    except ProbeError:
+        return -10.0
+    if usable.sum() < 5:
+        return -10.0
+    crop = lum[y0:y1, x0:x1]
+    peak = float(crop[usable].max())
+    if not peak > 0:
+        return -10.0
+    cores, n_cores = ndimage.label(usable & (crop >= TIE_FRACTION * peak), np.ones((3, 3)))
+    cys, cxs = np.nonzero(cores > 0)
+    footprint_deg = math.degrees(math.sqrt(float(np.median(_solid_angle_weights(
+        camera, sphere, cxs + x0 + 0.5, cys + y0 + 0.5)))))
+    scores, _ = _core_scores(camera, sphere, crop, cores, np.arange(1, n_cores + 1), s, (x0, y0),
+                             MAX_LIGHT_SPREAD_DEG + 3.0 * footprint_deg, None, usable)
+    return float(scores.max())
+
+
 def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np.ndarray | None = None,
                      clip_level: float | None = None, expect_to_light=None,
                      circle_px: float | None = None) -> Highlight:
@@ -402,7 +443,7 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
         camera, sphere, cxs + x0 + 0.5, cys + y0 + 0.5)))))
     spread_limit = MAX_LIGHT_SPREAD_DEG + 3.0 * footprint_deg
     scores, core_dirs = _core_scores(camera, sphere, crop, cores, core_index, s, (x0, y0), spread_limit,
-                                     expect_to_light)
+                                     expect_to_light, usable)
     order = np.argsort(-scores)
     best_core = cores == int(core_index[order[0]])
     rival = None
@@ -413,7 +454,8 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     region = labels == best
     square = np.ones((3, 3))
     near_core = ndimage.binary_dilation(best_core, square, iterations=CORE_RIM_PX) & usable
-    if (region & ~near_core).sum() > MERGED_FRACTION * region.sum():
+    merged = (region & ~near_core).sum() > MERGED_FRACTION * region.sum()
+    if merged:
         # a light merged with bright surroundings (or a broad lobe): measure its core and
         # rim only, above the level of the surroundings just outside that rim
         grown = near_core
@@ -435,10 +477,11 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     px = float(np.average(xs + x0 + 0.5, weights=weights[ys, xs]))
     py = float(np.average(ys + y0 + 0.5, weights=weights[ys, xs]))
     compact = _spread_deg(refl[region]) <= spread_limit
-    if compact and region.sum() <= SMALL_HIGHLIGHT_PX:
+    if compact and (region.sum() <= SMALL_HIGHLIGHT_PX or (merged and best_core.sum() <= SMALL_HIGHLIGHT_PX)):
         # the core's own centre, then a soft window around it above the level of its
         # surroundings (the 90th percentile of a ring just outside the window: a lit
-        # floor's reflection beside a small clipped highlight must not pull it)
+        # floor's reflection beside a small clipped highlight, or touching it, must not
+        # pull it)
         cy_, cx_ = np.nonzero(best_core)
         start = (float(cx_.mean()) + 0.5, float(cy_.mean()) + 0.5)
         radius = math.sqrt(best_core.sum() / math.pi) + WINDOW_MARGIN_PX
@@ -446,7 +489,11 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
         dist = np.hypot(xx - start[0], yy - start[1])
         ring = usable & (dist > radius + 1.0) & (dist <= radius + 3.0)
         level = float(np.percentile(crop[ring], 90)) if ring.sum() >= 4 else background
-        px, py = _soft_window_centroid(crop, usable, start, level, radius)
+        # only the light's own pixels count: those reached from its core by steps
+        # downhill (its blur falls off monotonically; a lit surface's reflection beside
+        # it, or another candidate, rises again)
+        own = _downhill_from(crop, best_core, usable & ~((cores > 0) & ~best_core), int(math.ceil(radius)) + 2)
+        px, py = _soft_window_centroid(crop, own, start, level, radius)
         px, py = px + x0, py + y0
     at_centroid = surface(camera, sphere, np.array([px]), np.array([py]))
     if compact and at_centroid["hit"][0]:
@@ -477,6 +524,22 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     return Highlight(to_light, (px, py), quality)
 
 
+def _downhill_from(crop: np.ndarray, seed: np.ndarray, allowed: np.ndarray, steps: int) -> np.ndarray:
+    """Pixels reached from ``seed`` within ``steps`` steps (8-neighbours) through
+    ``allowed`` pixels, each step to a strictly darker pixel than a reached neighbour:
+    a blurred highlight's own pixels, not a brighter structure beside it."""
+    reached = np.asarray(seed, bool).copy()
+    square = np.ones((3, 3), bool)
+    for _ in range(steps):
+        around = ndimage.maximum_filter(np.where(reached, crop, -np.inf), footprint=square, mode="constant",
+                                        cval=-np.inf)
+        new = allowed & ~reached & (crop < around)
+        if not new.any():
+            break
+        reached |= new
+    return reached
+
+
 def _soft_window_centroid(crop: np.ndarray, usable: np.ndarray, start: tuple[float, float], background: float,
                           radius: float, rounds: int = 6) -> tuple[float, float]:
     """Sub-pixel centre ``(x, y)`` (crop pixel coordinates, centres at +0.5) of a compact
@@ -504,8 +567,8 @@ def _soft_window_centroid(crop: np.ndarray, usable: np.ndarray, start: tuple[flo
 
 
 def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.ndarray, index: np.ndarray,
-                 s: dict, origin: tuple[int, int], spread_limit: float, expect_to_light=None
-                 ) -> tuple[np.ndarray, np.ndarray]:
+                 s: dict, origin: tuple[int, int], spread_limit: float, expect_to_light=None,
+                 usable: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """How much each brightest blob (``cores`` labels ``index``) looks like a small
     light's highlight, and its reflected direction (intensity-weighted mean).
 
@@ -513,11 +576,15 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
     ``spread_limit``), round in the image (elongation: the ratio of the blob's principal
     axes, a pixel's own extent included), not compressed against the rim (the share of
     its pixels whose normal is more than :data:`RIM_BLOB_ANGLE_DEG` from the view ray: a
-    grazing reflection of a lit floor or wall lies there, stretched along the rim), and,
+    grazing reflection of a lit floor or wall lies there, stretched along the rim),
+    standing alone (:func:`_surround_share` of the ``usable`` pixels around it: a lit
+    surface's clipped patch continues into bright surroundings), and,
     when ``expect_to_light`` (a diffuse sphere's shading direction) is given, near that
     direction. In a linear HDR image a dimmer blob loses by its brightness too. Scores
     are log-likelihood-like: 0 is a perfect candidate, each unit a clear strike."""
     peak = float(crop[cores > 0].max())
+    if usable is None:
+        usable = np.ones(crop.shape, bool)
     refl = s["reflect"]
     cos_view = s["cos_view"]
     scores, dirs = [], []
@@ -536,6 +603,7 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
             score -= 0.5 * max(0.0, math.sqrt(ev[1] / max(ev[0], 1e-9)) - 1.5)
         grazing = float(np.mean(cos_view[ys, xs] < math.cos(math.radians(RIM_BLOB_ANGLE_DEG))))
         score -= 2.0 * grazing
+        score -= ISOLATION_WEIGHT * max(0.0, _surround_share(crop, cores == k, usable) - ISOLATION_LEVEL)
         if expect_to_light is not None:
             e = np.asarray(expect_to_light, np.float64)
             angle = math.degrees(math.acos(float(np.clip(d @ (e / np.linalg.norm(e)), -1.0, 1.0))))
@@ -544,6 +612,20 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
         score += 0.05 * math.log10(ys.size)                             # ties: the larger blob (a brighter light)
         scores.append(score)
     return np.asarray(scores), np.asarray(dirs)
+
+
+def _surround_share(crop: np.ndarray, blob: np.ndarray, usable: np.ndarray) -> float:
+    """How bright a candidate's surroundings are: the 90th percentile of the usable pixels
+    :data:`ISOLATION_RING_PX` pixels from the blob (chessboard distance, past a lens's or
+    pixel filter's blur), over the blob's own peak. A small light's highlight stands
+    alone on the mirrored scene (near 0); a clipped patch of a lit floor or wall is the
+    brightest part of a surface that continues beside it (often 0.2-0.9)."""
+    square = np.ones((3, 3), bool)
+    near = ndimage.binary_dilation(blob, square, iterations=ISOLATION_RING_PX[0] - 1)
+    ring = ndimage.binary_dilation(blob, square, iterations=ISOLATION_RING_PX[1]) & ~near & usable
+    if ring.sum() < 3:
+        return 0.0
+    return float(np.percentile(crop[ring], 90)) / max(float(crop[blob].max()), 1e-12)
 
 
 def _spread_deg(directions: np.ndarray) -> float:
