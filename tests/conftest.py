@@ -91,6 +91,12 @@ def render_drift(image, ref) -> str | None:
     return None
 
 
+# `relight invert` stops by step tolerance, iteration cap or a wall-clock budget (60 s an
+# image by default). A test that asserts its accuracy must not depend on the clock: on a
+# loaded machine the budget ran out first (1.8 deg instead of < 1 deg on test_inverse_ad).
+NO_TIME_BUDGET = ["--time-budget", "3600"]
+
+
 def same_draws_mismatch(a, b, atol: float = DRAWS_ATOL, rtol: float = DRAWS_ATOL, where: str = ""):
     """The first place where two nested structures (dataclasses, dicts, lists, tuples,
     numbers, strings) differ, or None: floats may differ by ``atol + rtol * |b|``, all

@@ -15,7 +15,7 @@ import json
 import numpy as np
 import pytest
 
-from conftest import sphere_scene
+from conftest import NO_TIME_BUDGET, sphere_scene
 
 REF_SPP, REF_STEP_DEG, REF_SEED = 1024, 0.25, 5
 AD_SPP, AD_SEED = 128, 2
@@ -127,7 +127,7 @@ def test_invert_gradient_ad_end_to_end(mi, tmp_path):
     spec.save(scene_path)
     write_exr(str(image_path), SceneBuilder(max_templates=1).render(spec))
     assert main(["invert", "--scene", str(scene_path), "--image", str(image_path), "--out", str(out),
-                 "--gradient", "ad", "--init", "grid", "--quiet"]) == 0
+                 "--gradient", "ad", "--init", "grid", "--quiet", *NO_TIME_BUDGET]) == 0
     doc = json.loads(out.read_text())
     assert doc["settings"]["gradient"] == "ad"
     p = doc["predictions"][0]

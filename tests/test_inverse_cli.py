@@ -9,6 +9,8 @@ import pytest
 from relight.cli import main
 from relight.metrics import light_errors
 
+from conftest import NO_TIME_BUDGET
+
 # 32 px targets at 16 spp, fitted at 32 px: one pixel spans ~0.7 m of floor at the
 # scene centre, and the cast-shadow edge of a ~1 m object moves ~0.5 m per degree of
 # light tilt at 30 m, so a 2 deg error moves shadows by about a pixel: clearly
@@ -41,7 +43,8 @@ def _errors(data_dir, pred_path):
 
 def test_invert_recovers_known_light(dataset, tmp_path):
     out = tmp_path / "inv.json"
-    assert main(["invert", "--data", str(dataset), "--split", "all", "--out", str(out), "--quiet"]) == 0
+    assert main(["invert", "--data", str(dataset), "--split", "all", "--out", str(out), "--quiet",
+                 *NO_TIME_BUDGET]) == 0
     errs = _errors(dataset, out)
     assert len(errs) == N_IMAGES
     for e in errs:
@@ -66,7 +69,7 @@ def test_invert_single_image_from_prediction_file(dataset, tmp_path):
                                "tilt_deg": min(rec["light"]["tilt_deg"], 85.0) - 5.0, "rgb": [1, 1, 1]}])
     out = tmp_path / "one.json"
     assert main(["invert", "--scene", str(dataset / rec["scene"]), "--image", str(dataset / rec["exr"]),
-                 "--init", str(start), "--out", str(out), "--quiet", "--max-iters", "20"]) == 0
+                 "--init", str(start), "--out", str(out), "--quiet", "--max-iters", "20", *NO_TIME_BUDGET]) == 0
     (e,) = _errors(dataset, out)
     assert e["direction"] < DIRECTION_TOL_DEG and e["colour"] < COLOUR_TOL_DEG
 
