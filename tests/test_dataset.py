@@ -146,6 +146,27 @@ def test_card_written_before_a_setting_existed_still_resumes(tmp_path, mi):
         generate(tmp_path, 3, seed=4, cfg=one, progress=False)
 
 
+def test_card_written_before_the_photo_and_material_settings_still_resumes(tmp_path, mi):
+    """Datasets made before void_fraction, glossy_fraction, metal_fraction, flash_* and
+    ambient_* existed (their cards lack the keys) resume with those settings off."""
+    import dataclasses
+    import json
+    from relight.dataset import DatasetError
+    from relight.generator.sampling import LEGACY_CONFIG
+    later = ("void_fraction", "glossy_fraction", "metal_fraction", "flash_fraction", "flash_cone_deg",
+             "ambient_fraction", "ambient_ratio")
+    assert all(json.dumps(LEGACY_CONFIG[k]) == json.dumps(list(v) if isinstance(v, tuple) else v)
+               for k, v in ((k, getattr(CFG, k)) for k in later))   # "off" is today's default
+    generate(tmp_path, 1, seed=4, cfg=CFG, progress=False)
+    card = json.loads((tmp_path / "dataset.json").read_text())
+    for k in later:
+        del card["config"][k]
+    (tmp_path / "dataset.json").write_text(json.dumps(card))
+    assert generate(tmp_path, 2, seed=4, cfg=CFG, progress=False).written == 1
+    with pytest.raises(DatasetError, match=r"other settings \(metal_fraction 0.0 there, 0.5 here\)"):
+        generate(tmp_path, 3, seed=4, cfg=dataclasses.replace(CFG, metal_fraction=0.5), progress=False)
+
+
 def test_split_is_deterministic_and_balanced():
     from relight.generator.sampling import split_of
     splits = [split_of(f"{i:06d}") for i in range(3000)]

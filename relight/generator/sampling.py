@@ -205,7 +205,11 @@ PRESETS: dict[str, dict] = {
 # Settings added after the first datasets, with the value every dataset made before the
 # setting existed used: a card without the key means that value (never today's default).
 LEGACY_CONFIG: dict = {"sampler": LEGACY_SAMPLER, "colour_prior": "hsv", "object_parts": [1, 1],
-                       "backgrounds": "patterns", "light_colour": "planckian"}
+                       "backgrounds": "patterns", "light_colour": "planckian",
+                       # the photo-like, material, flash and sky draws: off before they existed
+                       "void_fraction": 0.0, "glossy_fraction": 0.0, "metal_fraction": 0.0,
+                       "flash_fraction": 0.0, "flash_cone_deg": 40.0, "ambient_fraction": 0.0,
+                       "ambient_ratio": [0.05, 0.5]}
 
 
 BUILTIN_MESHES = "builtin"   # mesh_dir value: the meshes shipped in relight/assets/meshes
