@@ -155,8 +155,9 @@ def test_card_written_before_the_photo_and_material_settings_still_resumes(tmp_p
     from relight.generator.sampling import LEGACY_CONFIG
     later = ("void_fraction", "glossy_fraction", "metal_fraction", "flash_fraction", "flash_cone_deg",
              "ambient_fraction", "ambient_ratio")
-    assert all(json.dumps(LEGACY_CONFIG[k]) == json.dumps(list(v) if isinstance(v, tuple) else v)
-               for k, v in ((k, getattr(CFG, k)) for k in later))   # "off" is today's default
+    # exact: two settings written in code (no float computed here), "off" is today's default
+    assert all(json.dumps(LEGACY_CONFIG[k]) == json.dumps(list(v) if isinstance(v, tuple) else v)  # exact
+               for k, v in ((k, getattr(CFG, k)) for k in later))
     generate(tmp_path, 1, seed=4, cfg=CFG, progress=False)
     card = json.loads((tmp_path / "dataset.json").read_text())
     for k in later:
