@@ -93,10 +93,11 @@ def cmd_generate(args) -> int:
         return cmd_generate_mid(args)
     from relight.generator.run import generate
     from relight.fileio import check_outputs
-    from relight.generator.sampling import GeneratorConfig
+    from relight.generator.sampling import BUILTIN_MESHES, GeneratorConfig
+    mesh_dir = args.mesh_dir if args.mesh_dir in (None, BUILTIN_MESHES) else os.path.abspath(args.mesh_dir)
     overrides = dict(res=args.res, spp=args.spp, max_depth=args.max_depth, sampler=args.sampler,
                      target_rmse=args.target_rmse, colour_prior=args.colour_prior, backgrounds=args.backgrounds,
-                     object_parts=args.object_parts, mesh_dir=args.mesh_dir if args.mesh_dir in (None, "builtin") else os.path.abspath(args.mesh_dir))
+                     object_parts=args.object_parts, mesh_dir=mesh_dir)
     cfg = GeneratorConfig.from_file(args.config, preset=args.preset, **overrides)
     check_outputs([args.out], [args.config, args.mesh_dir])
     scheduler = engine.scheduler_from_args(args)   # --scheduler, or --workers N as local:N

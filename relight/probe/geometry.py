@@ -377,13 +377,26 @@ def highlight_likelihood(image: np.ndarray, camera: Camera, sphere: Sphere) -> f
     peak = float(crop[usable].max())
     if not peak > 0:
         return -10.0
+    return float(_scored_cores(camera, sphere, crop, usable, s, (x0, y0), peak, None)[2].max())
+
+
+def _scored_cores(camera: Camera, sphere: Sphere, crop: np.ndarray, usable: np.ndarray, s: dict,
+                  offset: tuple[int, int], peak: float, expect_to_light):
+    """The brightest cores of a sphere's crop (connected pixels within
+    :data:`TIE_FRACTION` of ``peak``: clipped blobs, or the peak pixel of an unclipped
+    image), each scored by what a small light predicts (:func:`_core_scores`). Returns
+    ``(cores, core_index, scores, core_dirs, spread_limit)``: the label image, the labels,
+    their scores and reflected directions, and the compactness limit in degrees."""
+    x0, y0 = offset
     cores, n_cores = ndimage.label(usable & (crop >= TIE_FRACTION * peak), np.ones((3, 3)))
+    core_index = np.arange(1, n_cores + 1)
     cys, cxs = np.nonzero(cores > 0)
     footprint_deg = math.degrees(math.sqrt(float(np.median(_solid_angle_weights(
         camera, sphere, cxs + x0 + 0.5, cys + y0 + 0.5)))))
-    scores, _ = _core_scores(camera, sphere, crop, cores, np.arange(1, n_cores + 1), s, (x0, y0),
-                             MAX_LIGHT_SPREAD_DEG + 3.0 * footprint_deg, None, usable)
-    return float(scores.max())
+    spread_limit = MAX_LIGHT_SPREAD_DEG + 3.0 * footprint_deg
+    scores, core_dirs = _core_scores(camera, sphere, crop, cores, core_index, s, (x0, y0), spread_limit,
+                                     expect_to_light, usable)
+    return cores, core_index, scores, core_dirs, spread_limit
 
 
 def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np.ndarray | None = None,
@@ -434,16 +447,8 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
         raise ProbeError("no highlight on the chrome sphere (it is black or evenly lit)")
     labels, count = ndimage.label(usable & (crop >= HIGHLIGHT_FRACTION * peak), np.ones((3, 3)))
     refl = s["reflect"]
-    # the brightest cores (clipped blobs, or the peak pixel of an unclipped image), each
-    # scored by what a small light predicts (:func:`_core_scores`)
-    cores, n_cores = ndimage.label(usable & (crop >= TIE_FRACTION * peak), np.ones((3, 3)))
-    core_index = np.arange(1, n_cores + 1)
-    cys, cxs = np.nonzero(cores > 0)
-    footprint_deg = math.degrees(math.sqrt(float(np.median(_solid_angle_weights(
-        camera, sphere, cxs + x0 + 0.5, cys + y0 + 0.5)))))
-    spread_limit = MAX_LIGHT_SPREAD_DEG + 3.0 * footprint_deg
-    scores, core_dirs = _core_scores(camera, sphere, crop, cores, core_index, s, (x0, y0), spread_limit,
-                                     expect_to_light, usable)
+    cores, core_index, scores, core_dirs, spread_limit = _scored_cores(
+        camera, sphere, crop, usable, s, (x0, y0), peak, expect_to_light)
     order = np.argsort(-scores)
     best_core = cores == int(core_index[order[0]])
     rival = None
@@ -511,7 +516,7 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
         "clipped": bool(clipped),
         "view_angle_deg": math.degrees(math.acos(min(max(cos_view, -1.0), 1.0))),
         "ambiguity": rival[0] if rival else 0.0,
-        "candidates": int(n_cores),
+        "candidates": len(core_index),
     }
     if rival is not None:
         ry, rx = np.nonzero(cores == rival[2])

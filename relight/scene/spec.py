@@ -314,8 +314,7 @@ class SceneSpec:
                 light=LightSpec(**{**d["light"], "rgb": tuple(d["light"]["rgb"])}),
                 room=RoomSpec(**room),
                 objects=tuple(ObjectSpec(**{**o, "position_m": tuple(o["position_m"]),
-                                            "reflectance": tuple(o["reflectance"]),
-                                            **({"gloss_rgb": tuple(o["gloss_rgb"])} if "gloss_rgb" in o else {})})
+                                            "reflectance": tuple(o["reflectance"])})
                               for o in d["objects"]),
                 render=RenderSpec(**d.get("render", {})),
                 colour_prior=d.get("colour_prior"),
