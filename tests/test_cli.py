@@ -4,6 +4,7 @@ import os
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from relight.cli import main
@@ -38,6 +39,9 @@ def scene_file(tmp_path_factory):
     ["render", "{scene}", "--out", "{tmp}/x.png", "--rgb", "1,2"],
     ["render", "{corrupt}", "--out", "{tmp}/x.png"],
     ["render", "{v9}", "--out", "{tmp}/x.png"],
+    ["render", "{scene}", "--out", "{tmp}/x.png", "--out", "{tmp}/x.jpg"],
+    ["render", "{scene}", "--out", "{tmp}/x.png", "--out", "{tmp}/x.png"],
+    ["render", "{scene}", "--out", "{tmp}/x.png", "--out", "{scene}"],
     ["nosuchcommand"],
 ])
 def test_bad_input_one_line_exit_2(argv, tmp_path, scene_file, capsys):
@@ -62,6 +66,10 @@ def test_render_writes_png_and_exr(tmp_path, scene_file, capsys, mi):
     assert a.shape == (16, 16, 3) and (a != b).any()
     assert main(["render", str(scene_file), "--out", str(tmp_path / "c.png")]) == 0
     assert (tmp_path / "c.png").stat().st_size > 0
+    # one render, two files: the same image as rendering each alone (same scene, same seed)
+    assert main(["render", str(scene_file), "--out", str(tmp_path / "d.exr"), "--out", str(tmp_path / "d.png")]) == 0
+    assert np.array_equal(read_exr(tmp_path / "d.exr"), a)
+    assert (tmp_path / "d.png").read_bytes() == (tmp_path / "c.png").read_bytes()
 
 
 def test_help_lists_commands():

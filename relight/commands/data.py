@@ -59,9 +59,11 @@ def add_commands(sub) -> None:
     g.set_defaults(func=cmd_generate)
 
     r = sub.add_parser("render", help="re-render one scene file, optionally under another light",
-                       description="Render SCENE (a relight.scene/v1 file) to OUT (.png or .exr).")
+                       description="Render SCENE (a relight.scene/v1 file) to OUT (.png or .exr); "
+                                   "repeat --out to write several files from one render.")
     r.add_argument("scene", help="scene file (JSON)")
-    r.add_argument("--out", required=True, help="output image (.png 8-bit sRGB or .exr linear)")
+    r.add_argument("--out", required=True, action="append",
+                   help="output image (.png 8-bit sRGB or .exr linear); repeatable (e.g. --out a.exr --out a.png)")
     r.add_argument("--light-pan", type=at.light_pan, default=None,
                    help="light pan relative to the camera, degrees (0 front, 90 right)")
     r.add_argument("--light-tilt", type=at.light_tilt, default=None, help="light tilt (elevation), degrees")
@@ -118,17 +120,21 @@ def cmd_render(args) -> int:
     from relight.imageio import ImageError, write_exr, write_png
     from relight.scene.build import render_spec
     from relight.scene.spec import load_scene
-    ext = os.path.splitext(args.out)[1].lower()
-    if ext not in (".png", ".exr"):
-        raise ImageError(f"--out must end in .png or .exr, got {args.out!r}")
-    check_outputs([args.out], [args.scene])
-    check_file_target(args.out)
+    outs = list(args.out)
+    for out in outs:
+        if os.path.splitext(out)[1].lower() not in (".png", ".exr"):
+            raise ImageError(f"--out must end in .png or .exr, got {out!r}")
+        check_file_target(out)
+    if len({os.path.realpath(out) for out in outs}) < len(outs):
+        raise ImageError("--out names the same file twice")
+    check_outputs(outs, [args.scene])
     spec = load_scene(args.scene)
     spec = spec.with_light(args.light_pan, args.light_tilt, args.rgb)
     if args.spp:
         spec = dataclasses.replace(spec, render=dataclasses.replace(spec.render, spp=args.spp))
     image = render_spec(spec)
-    (write_exr if ext == ".exr" else write_png)(args.out, image, inputs=[args.scene])
-    print(f"{args.out}: {spec.render.res}x{spec.render.res}, light pan_rel {spec.pan_rel_deg:.1f} "
+    for out in outs:
+        (write_exr if out.lower().endswith(".exr") else write_png)(out, image, inputs=[args.scene])
+    print(f"{', '.join(outs)}: {spec.render.res}x{spec.render.res}, light pan_rel {spec.pan_rel_deg:.1f} "
           f"tilt {spec.light.tilt_deg:.1f} deg", file=sys.stdout)
     return 0
