@@ -17,6 +17,12 @@ One run on fixed default scenes (``sample_scene(GeneratorConfig(res), 4242, i)``
     time is ``mi.render`` on a loaded template (as in generation); Cycles time is its
     render call (scene sync, BVH build, sampling, EXR write; the Python scene build
     is not counted). Both use all cores.
+(c) ``--end-to-end``: the user's whole pipeline per scene file at equal error (the first
+    target's sample counts from (b), rounded up), each a fresh process, start-up included:
+    ``relight render SCENE --spp S --out x.exr --out x.png`` against ``relight
+    export-blender SCENE --spp S --out x.blend --render x.exr`` (Cycles writes no PNG
+    there: counted in its favour). The two commands alternate scene by scene so both see
+    the same machine load; wall seconds per scene file and their ratio.
 
 Relative RMSE is the generator's: ``sqrt(mean((x - ref)^2)) / mean(ref)``. References
 are cached under ``--cache`` keyed by scene, renderer, code and spp. Skips (one line,
@@ -24,6 +30,7 @@ exit 0) when the Blender environment (``scripts/setup_blender.sh``) is absent.
 
 Usage: python benchmarks/bench_cycles.py [--n 4] [--res 128] [--ref-spp 2048]
                                          [--targets 0.03,0.015,0.0075] [--cache DIR]
+                                         [--end-to-end]
 """
 from __future__ import annotations
 
@@ -31,7 +38,10 @@ import dataclasses
 import hashlib
 import math
 import os
+import subprocess
 import sys
+import tempfile
+import time
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
@@ -187,6 +197,42 @@ def time_at(times: dict[int, float], spp: float) -> float:
     return float(t0 + k * spp)
 
 
+def end_to_end(specs, errors: dict, target: float) -> None:
+    """(c): the user's command per scene file, both renderers at ``target`` (module docstring)."""
+    from relight.render import exact_spp
+    sm, sc = spp_for(errors["m"], target), spp_for(errors["c"], target)
+    print(f"\n## (c) end to end at relative RMSE {target}: one fresh process per scene file, "
+          "start-up, scene file in, images out")
+    if sm is None or sc is None:
+        print("a renderer does not reach the target on the ladder: no end-to-end figure")
+        return
+    sampler = getattr(specs[0].render, "sampler", "independent")
+    sm, sc = exact_spp(sampler, math.ceil(sm)), math.ceil(sc)
+    walls = {"m": [], "c": []}
+    with tempfile.TemporaryDirectory(prefix="relight-e2e-") as tmp:
+        for i, spec in enumerate(specs):
+            scene = os.path.join(tmp, f"{i}.json")
+            spec.save(scene)
+            commands = {
+                "m": ["render", scene, "--spp", str(sm), "--out", os.path.join(tmp, f"{i}.exr"),
+                      "--out", os.path.join(tmp, f"{i}.png")],
+                "c": ["export-blender", scene, "--spp", str(sc), "--out", os.path.join(tmp, f"{i}.blend"),
+                      "--render", os.path.join(tmp, f"{i}-cycles.exr")]}
+            for key, argv in commands.items():
+                t0 = time.perf_counter()
+                done = subprocess.run([sys.executable, "-m", "relight", *argv], capture_output=True, text=True)
+                walls[key].append(time.perf_counter() - t0)
+                if done.returncode != 0:
+                    raise RuntimeError(f"relight {argv[0]} failed: {(done.stderr or '').strip()[-300:]}")
+    m, c = float(np.median(walls["m"])), float(np.median(walls["c"]))
+    print(f"| renderer | command | spp | wall s per scene file (median of {len(specs)}; all) |")
+    print("|---|---|---|---|")
+    print(f"| Mitsuba | relight render (EXR + PNG) | {sm} | {m:.2f} ({', '.join(f'{w:.2f}' for w in walls['m'])}) |")
+    print(f"| Cycles | relight export-blender --render (.blend + EXR) | {sc} | {c:.2f} "
+          f"({', '.join(f'{w:.2f}' for w in walls['c'])}) |")
+    print(f"Cycles / relight, end to end: {c / m:.2f}")
+
+
 # --------------------------------------------------------------------------- main
 def main(argv: list[str] | None = None) -> int:
     ap = at.OneLineParser(description=__doc__.splitlines()[0])
@@ -195,6 +241,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--ref-spp", type=at.spp, default=2048, help="samples of the converged references")
     ap.add_argument("--targets", default="0.03,0.015,0.0075", help="relative RMSE targets")
     ap.add_argument("--cache", default=DEFAULT_CACHE, help="folder of cached references")
+    ap.add_argument("--end-to-end", action="store_true",
+                    help="also time the user's command per scene file at the first target (section c)")
     args = ap.parse_args(argv)
     if blender.blender_python() is None:
         print("bench_cycles: skipped (no Blender environment; run scripts/setup_blender.sh)")
@@ -278,6 +326,8 @@ def main(argv: list[str] | None = None) -> int:
         ratio = f"{tc / tm:.1f}" if tm and tc else "-"
         fmt = lambda s, t: ("> ladder", "-") if s is None else (f"{s:.0f}", f"{t:.3f}")  # noqa: E731
         print(f"| {target:.4f} | {' | '.join(fmt(sm, tm))} | {' | '.join(fmt(sc, tc))} | {ratio} |")
+    if args.end_to_end:
+        end_to_end(specs, errors, targets[0])
     return 0
 
 
