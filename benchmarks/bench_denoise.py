@@ -10,7 +10,8 @@ defaults, seed 777, multijitter, path depth 4) and so are the references (``inde
 at 4096 spp, another seed). Each low-spp render is scored three ways: as rendered; denoised
 from its colour alone; denoised with albedo and normal images (Mitsuba's ``aov``
 integrator at ``--aov-spp``, whose time is counted). The denoiser needs the
-``pyoidn`` package (``pip install pyoidn``); without it the script says so and exits 2.
+``pyoidn`` package (``pip install pyoidn``, not a dependency); without it the script
+says so in one line and exits 0 (skipped).
 
 Shading-edge band: the shading is the reference over its albedo (the clean albedo of
 the same scene at 64 spp), so texture edges are divided out and what is left are the
@@ -33,6 +34,7 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
 from relight import backend  # noqa: E402
+from relight.commands import argtypes as at  # noqa: E402
 from relight.generator.sampling import GeneratorConfig, sample_scene  # noqa: E402
 from relight.render import render_scene  # noqa: E402
 from relight.scene import noise  # noqa: E402
@@ -68,13 +70,13 @@ def band_rmse(image: np.ndarray, reference: np.ndarray, band: np.ndarray) -> flo
     return float(np.sqrt(np.mean(d ** 2)) / np.mean(reference[band]))
 
 
-def denoiser():
+def spp_list(text: str) -> list[int]:
+    """Comma-separated sample counts, each a valid ``--spp``."""
     try:
-        import pyoidn
-    except ImportError:
-        print("bench_denoise: needs the pyoidn package (pip install pyoidn)", file=sys.stderr)
-        raise SystemExit(2)
-    return pyoidn
+        return [at.spp(t) for t in text.split(",")]
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"expected sample counts per pixel A,B,... (1-{at.MAX_SPP}), "
+                                         f"got {text!r}") from None
 
 
 def timed(fn, repeats: int):
@@ -88,26 +90,26 @@ def timed(fn, repeats: int):
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--scenes", type=int, default=8, help="fixed default scenes (default 8)")
-    ap.add_argument("--res", type=int, default=128, help="image size in pixels (default 128)")
-    ap.add_argument("--ref-spp", type=int, default=4096, help="reference samples per pixel (default 4096)")
-    ap.add_argument("--spp", default="1,2,4,8,16", help="low sample counts to test (default 1,2,4,8,16)")
-    ap.add_argument("--aov-spp", type=int, default=4, help="samples of the albedo/normal images (default 4)")
+    ap = at.OneLineParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--scenes", type=at.int_in(1, 1000, "a scene count"), default=8,
+                    help="fixed default scenes (default 8)")
+    ap.add_argument("--res", type=at.int_in(8, at.MAX_RES, "an image size in pixels"), default=128,
+                    help="image size in pixels (default 128)")
+    ap.add_argument("--ref-spp", type=at.spp, default=4096, help="reference samples per pixel (default 4096)")
+    ap.add_argument("--spp", type=spp_list, default=[1, 2, 4, 8, 16],
+                    help="low sample counts to test (default 1,2,4,8,16)")
+    ap.add_argument("--aov-spp", type=at.spp, default=4, help="samples of the albedo/normal images (default 4)")
     ap.add_argument("--quality", default="high", choices=("high", "balanced", "fast"),
                     help="denoiser quality (default high)")
-    ap.add_argument("--repeats", type=int, default=3, help="timing repeats, median (default 3)")
+    ap.add_argument("--repeats", type=at.int_in(1, 100, "a repeat count"), default=3,
+                    help="timing repeats, median (default 3)")
     args = ap.parse_args()
+    counts = args.spp
     try:
-        counts = [int(s) for s in args.spp.split(",")]
-    except ValueError:
-        print(f"bench_denoise: --spp wants comma-separated integers, got {args.spp!r}", file=sys.stderr)
-        return 2
-    if args.scenes < 1 or args.res < 8 or min(counts) < 1 or args.ref_spp < 1 or args.aov_spp < 1:
-        print("bench_denoise: --scenes >= 1, --res >= 8 and every sample count >= 1", file=sys.stderr)
-        return 2
-    oidn = denoiser()
+        import pyoidn as oidn
+    except ImportError:
+        print("bench_denoise: skipped (needs the pyoidn package: .venv/bin/python -m pip install pyoidn)")
+        return 0
     mi = backend.mitsuba()
     aov = mi.load_dict({"type": "aov", "aovs": "al:albedo,nn:sh_normal"})
     builder = SceneBuilder()
@@ -175,4 +177,4 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(at.run_script(main))
