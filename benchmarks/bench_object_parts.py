@@ -51,13 +51,13 @@ def baseline_errors(data_dir: str, split: str) -> dict[str, np.ndarray]:
 
 
 def model_errors(model_path: str, data_dir: str, split: str) -> np.ndarray:
-    from relight.net.evaluate import decode_outputs, run_model
+    from relight.net.evaluate import decode_outputs, run_model, target_frame_of
     from relight.net.predict import load_model
     model = load_model(model_path)
     ds = LightDataset(data_dir, split, model.config.res, cache=False)
     y_pred = run_model(model, ds, 64)
     truth = ds.truth()
-    _, _, rgb = decode_outputs(y_pred, truth["camera_tilt_deg"])
+    _, _, rgb = decode_outputs(y_pred, truth["camera_tilt_deg"], target_frame_of(model))
     return colour_error_deg(rgb, truth["rgb"])
 
 

@@ -40,6 +40,7 @@ __all__ = [
     "world_to_envmap", "mitsuba_envmap_to_world", "rotation_about",
     "pan_from_rel", "tangent_move", "rotation_z", "frame_z_to", "perpendicular_pair", "sensor_frame",
     "fold_over_zenith", "camera_to_pan_tilt",
+    "TARGET_FRAMES", "target_tilt_deg", "y_to_target", "target_to_y",
 ]
 
 Y_SIZE = 7  # the paper's target vector: pan sin/cos, tilt sin/cos, r, g, b
@@ -340,6 +341,91 @@ def decode_y(y, tilt_c_deg, pan_c_deg=0.0):
     tilt_l = np.asarray(tilt_c_deg, dtype=np.float64) - np.degrees(np.arctan2(y[..., 2], y[..., 3]))
     pan_l, tilt_l = fold_over_zenith(pan_l, tilt_l)
     return np.asarray(pan_l, dtype=np.float64), np.asarray(tilt_l, dtype=np.float64), y[..., 4:7]
+
+
+# --- the network's target frame ----------------------------------------------------------
+#
+# A network may learn the paper's 7-vector as it is (``"world"``: the light relative to the
+# camera in the world's spherical coordinates, decoded with the camera's tilt) or the light
+# in the camera frame (``"camera"``): the paper's encoding of the same camera-frame
+# direction for a *level* camera (tilt 0, pan 0), where the world frame and the camera
+# frame differ only by naming the axes (camera x = world +Y, y = +Z, z = +X). A camera-frame
+# target is decoded with tilt 0 into the camera-frame direction, which the camera's tilt
+# (given, predicted or assumed) then turns into the world. Mirroring the image negates
+# camera x, i.e. the pan of the level camera: ``flip_y`` holds in both frames. Datasets
+# and predictions files always store the paper's y (docs/conventions.md).
+TARGET_FRAMES = ("world", "camera")
+
+
+def _check_target_frame(frame: str) -> None:
+    if frame not in TARGET_FRAMES:
+        raise ValueError(f"target frame must be one of {', '.join(TARGET_FRAMES)}, got {frame!r}")
+
+
+def target_tilt_deg(camera_tilt_deg, frame: str):
+    """The camera tilt a target of ``frame`` decodes with (:func:`decode_y`): the camera's
+    own (``"world"``), or 0 (``"camera"``: a level camera), shaped like ``camera_tilt_deg``.
+
+    >>> float(target_tilt_deg(30.0, "world")), target_tilt_deg([30.0, 45.0], "camera").tolist()
+    (30.0, [0.0, 0.0])
+    """
+    _check_target_frame(frame)
+    tilt = np.asarray(camera_tilt_deg, dtype=np.float64)
+    return tilt if frame == "world" else np.zeros_like(tilt)
+
+
+def _turn_by_camera_tilt(d, tilt_c_deg, sign: float) -> np.ndarray:
+    """World directions ``d`` ``(..., 3)`` turned about world +Y (the camera's x axis at pan
+    0) so that a camera at ``tilt_c_deg`` becomes level (``sign`` +1) or back (-1)."""
+    t = np.radians(sign * np.asarray(tilt_c_deg, dtype=np.float64))
+    c, s = np.cos(t), np.sin(t)
+    d = np.asarray(d, dtype=np.float64)
+    return np.stack(np.broadcast_arrays(c * d[..., 0] + s * d[..., 2], d[..., 1],
+                                        -s * d[..., 0] + c * d[..., 2]), axis=-1)
+
+
+def y_to_target(y, camera_tilt_deg, frame: str) -> np.ndarray:
+    """The network target in ``frame`` of the paper's 7-vectors ``y`` ``(..., 7)`` of cameras
+    at pan 0 and tilt ``camera_tilt_deg`` (degrees, broadcast): ``"world"`` gives ``y``
+    itself (a copy), ``"camera"`` the paper's encoding, for a level camera, of the light's
+    camera-frame direction (``world_to_camera`` of the light, read as pan and tilt of a
+    camera at tilt 0); the colour is kept.
+
+    A light at the camera (pan_rel 0, tilt = the camera's 30) is straight ahead of a level
+    camera: pan 0, tilt 0.
+
+    >>> y = encode_y(0.0, 30.0, [1.0, 0.0, 0.0], tilt_c_deg=30.0)
+    >>> (np.round(y_to_target(y, 30.0, "camera"), 12) + 0.0).tolist()
+    [0.0, 1.0, 0.0, 1.0, 1.0, 0.0, 0.0]
+    """
+    _check_target_frame(frame)
+    y = np.asarray(y, dtype=np.float64)
+    if frame == "world":
+        return np.array(y, copy=True)
+    pan, tilt, rgb = decode_y(y, camera_tilt_deg)
+    level = _turn_by_camera_tilt(direction(pan, tilt), camera_tilt_deg, +1.0)
+    _, pan0, tilt0 = cartesian_to_spherical(level)
+    return encode_y(pan0, tilt0, rgb, tilt_c_deg=0.0)
+
+
+def target_to_y(target, camera_tilt_deg, frame: str) -> np.ndarray:
+    """The paper's 7-vectors of network outputs ``target`` ``(..., 7)`` in ``frame`` (raw:
+    the sin/cos pairs need not be normalised) for cameras at pan 0 and tilt
+    ``camera_tilt_deg``: the inverse of :func:`y_to_target`. ``"world"`` gives the outputs
+    themselves (a copy); ``"camera"`` a paper's y with unit sin/cos pairs, colour kept.
+
+    >>> y = encode_y(250.0, 20.0, [0.0, 1.0, 0.0], tilt_c_deg=40.0)
+    >>> bool(np.allclose(target_to_y(y_to_target(y, 40.0, "camera"), 40.0, "camera"), y))
+    True
+    """
+    _check_target_frame(frame)
+    target = np.asarray(target, dtype=np.float64)
+    if frame == "world":
+        return np.array(target, copy=True)
+    pan0, tilt0, rgb = decode_y(target, 0.0)
+    world = _turn_by_camera_tilt(direction(pan0, tilt0), camera_tilt_deg, -1.0)
+    _, pan, tilt = cartesian_to_spherical(world)
+    return encode_y(pan, tilt, rgb, tilt_c_deg=camera_tilt_deg)
 
 
 def camera_position(tilt_c_deg, r_c_m=20.0, pan_c_deg=0.0) -> np.ndarray:

@@ -63,7 +63,7 @@ def _synthetic(n: int, rng, w_true: np.ndarray) -> tuple[dict, np.ndarray]:
     out = {"embedding": torch.tensor(e, dtype=torch.float32),
            "y_pred": torch.tensor(np.array(y_pred), dtype=torch.float32),
            "y_true": torch.tensor(np.array(y_true), dtype=torch.float32),
-           "camera_tilt_deg": torch.full((n,), CAMERA_TILT_DEG)}
+           "target_tilt_deg": torch.full((n,), CAMERA_TILT_DEG)}
     return out, kappa
 
 

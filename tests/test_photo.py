@@ -269,3 +269,157 @@ def test_resuming_an_older_run_with_a_camera_head_is_one_error(tmp_path):
     with pytest.raises(TrainingError, match="camera_weight was 0.0"):
         _check_resume_compatible(saved, cfg)
     _check_resume_compatible(saved, dataclasses.replace(cfg, camera_weight=0.0))   # the same run: fine
+
+
+# ----------------------------------------------------------------------------- camera-frame target
+ROUND_TRIP_ATOL = 1e-9   # float64 trigonometry of a few operations: far below any error we report
+
+
+def _lights(n=200, seed=3):
+    """Random lights (pan_rel, tilt in [-20, 90]) and cameras (tilt in [-10, 80]), unit colours."""
+    rng = np.random.default_rng(seed)
+    pan, tilt = rng.uniform(0, 360, n), rng.uniform(-20, 90, n)
+    tilt_c = rng.uniform(-10, 80, n)
+    rgb = rng.uniform(0.1, 1.0, (n, 3))
+    return pan, tilt, tilt_c, rgb / np.linalg.norm(rgb, axis=1, keepdims=True)
+
+
+def test_camera_frame_target_is_the_light_seen_from_the_camera_and_decodes_back():
+    """The camera-frame target decoded with tilt 0 (a level camera) is the light's
+    camera-frame direction (world_to_camera with the true tilt); decoded with the true camera
+    tilt it is the world light again; the world frame is the paper's y untouched."""
+    from relight.net.evaluate import decode_outputs
+    pan, tilt, tilt_c, rgb = _lights()
+    y = frames.encode_y(pan, tilt, rgb, tilt_c)
+    target = frames.y_to_target(y, tilt_c, "camera")
+    assert np.array_equal(frames.y_to_target(y, tilt_c, "world"), y)
+    p0, t0, rgb0 = frames.decode_y(target, 0.0)
+    seen = frames.world_to_camera(frames.direction(p0, t0), 0.0)
+    for i in range(len(pan)):
+        truth = frames.world_to_camera(frames.direction(pan[i], tilt[i]), tilt_c[i])
+        assert np.allclose(seen[i], truth, atol=ROUND_TRIP_ATOL)
+    assert np.allclose(rgb0, rgb, atol=ROUND_TRIP_ATOL)
+    p, t, c = decode_outputs(target, tilt_c, "camera")
+    assert np.allclose(frames.direction(p, t), frames.direction(pan, tilt), atol=ROUND_TRIP_ATOL)
+    assert np.allclose(c, rgb, atol=ROUND_TRIP_ATOL)
+    assert np.allclose(frames.target_to_y(target, tilt_c, "camera"), y, atol=ROUND_TRIP_ATOL)
+    # unnormalised outputs decode alike (the network's sin/cos pairs are raw)
+    scaled = target * np.array([2.0, 2.0, 0.3, 0.3, 5.0, 5.0, 5.0])
+    p2, t2, _ = decode_outputs(scaled, tilt_c, "camera")
+    assert np.allclose(frames.direction(p2, t2), frames.direction(pan, tilt), atol=ROUND_TRIP_ATOL)
+
+
+def test_camera_frame_angles_are_the_true_angles():
+    """The kappa loss and calibration measure angles between targets decoded with
+    target_tilt_deg (0 in the camera frame): the same angles as between the world lights."""
+    from relight.net.uncertainty import direction_from_y
+    pan, tilt, tilt_c, rgb = _lights(100)
+    other = frames.encode_y(pan + 25.0, tilt - 15.0, rgb, tilt_c)
+    y = frames.encode_y(pan, tilt, rgb, tilt_c)
+    true_angle = np.degrees(np.arccos(np.clip(np.sum(
+        frames.direction(pan, tilt) * frames.direction(*frames.decode_y(other, tilt_c)[:2]), 1), -1, 1)))
+    zero = torch.from_numpy(frames.target_tilt_deg(tilt_c, "camera"))
+    a = direction_from_y(torch.from_numpy(frames.y_to_target(y, tilt_c, "camera")), zero)
+    b = direction_from_y(torch.from_numpy(frames.y_to_target(other, tilt_c, "camera")), zero)
+    angle = np.degrees(np.arccos(np.clip((a * b).sum(1).numpy(), -1, 1)))
+    assert np.allclose(angle, true_angle, atol=1e-6)
+
+
+def test_mirroring_a_camera_frame_target_is_flip_y():
+    """The mirror image is lit by the mirrored light (pan_rel -> 360 - pan_rel): its
+    camera-frame target is flip_y of the original's, and its camera-frame direction has
+    x negated."""
+    from relight.net.data import flip_y
+    pan, tilt, tilt_c, rgb = _lights()
+    target = frames.y_to_target(frames.encode_y(pan, tilt, rgb, tilt_c), tilt_c, "camera")
+    mirrored = frames.y_to_target(frames.encode_y(360.0 - pan, tilt, rgb, tilt_c), tilt_c, "camera")
+    assert np.allclose(flip_y(target), mirrored, atol=ROUND_TRIP_ATOL)
+    v = frames.world_to_camera(frames.direction(*frames.decode_y(target, 0.0)[:2]), 0.0)
+    w = frames.world_to_camera(frames.direction(*frames.decode_y(mirrored, 0.0)[:2]), 0.0)
+    assert np.allclose(w, v * [-1.0, 1.0, 1.0], atol=ROUND_TRIP_ATOL)
+
+
+def test_dataset_targets_follow_the_target_frame(tmp_path):
+    """LightDataset's targets in the camera frame are y_to_target of the stored labels, with
+    target tilts 0; the stored labels and the truth stay the paper's."""
+    from conftest import tiny_dataset
+
+    from relight.net.data import LightDataset
+    data = tiny_dataset(tmp_path / "d", count=6, seed=4, res=16)
+    world = LightDataset(data, "all", 16)
+    camera = LightDataset(data, "all", 16, target_frame="camera")
+    tilts = world.truth()["camera_tilt_deg"]
+    for i in range(len(world)):
+        assert np.array_equal(world.target(i), np.asarray(world.records[i]["y"]))
+        assert np.array_equal(camera.target(i), frames.y_to_target(world.target(i), tilts[i], "camera"))
+    assert np.array_equal(world.target_tilts(range(6)), tilts)
+    assert np.array_equal(camera.target_tilts(range(6)), np.zeros(6))
+    with pytest.raises(ValueError):
+        LightDataset(data, "all", 16, target_frame="sky")
+
+
+def test_a_camera_frame_model_is_decoded_as_one(tmp_path):
+    """A model saved with target_frame camera keeps it through its file; predict reads its
+    outputs as the light in the camera frame, so the answer there does not depend on the
+    camera tilt, and the written y is the paper's 7-vector of the decoded light."""
+    from relight.net.io import load_model_file, save_model
+    from relight.net.predict import _predict_inputs, load_model
+    path = tmp_path / "camera.safetensors"
+    save_model(path, _net(camera_head=True, target_frame="camera"), {})
+    assert load_model_file(path).config.target_frame == "camera"
+    net = load_model(path)
+    x = [torch.rand(3, 32, 32, generator=torch.Generator().manual_seed(k)) for k in range(3)]
+    with torch.no_grad():
+        raw = net(torch.stack(x)).double().numpy()
+    seen = frames.world_to_camera(frames.direction(*frames.decode_y(raw, 0.0)[:2]), 0.0)
+    for tilt_c in (0.0, 30.0, 60.0):
+        preds = _predict_inputs(net, x, [tilt_c] * 3)
+        for p, v in zip(preds, seen):
+            assert np.allclose(p["to_light_camera"], v, atol=ROUND_TRIP_ATOL)
+            assert np.allclose(frames.direction(*frames.decode_y(p["y"], tilt_c)[:2]),
+                               frames.direction(p["pan_deg"], p["tilt_deg"]), atol=ROUND_TRIP_ATOL)
+    own = _predict_inputs(net, x, None)   # the camera head's tilt turns the same answer into the world
+    assert all(np.allclose(p["to_light_camera"], v, atol=ROUND_TRIP_ATOL) for p, v in zip(own, seen))
+
+
+def test_model_files_without_a_target_frame_decode_as_world(tmp_path):
+    """A model file written before target_frame existed (its config has no such key) is a
+    world-frame model: predict decodes its outputs as the paper's y."""
+    import json
+
+    from safetensors.torch import save_file
+
+    from relight.net.io import MODEL_FORMAT, load_model_file
+    from relight.net.predict import _predict_inputs
+    net = _net()
+    config = net.config.to_dict()
+    del config["target_frame"]
+    path = str(tmp_path / "old.safetensors")
+    save_file({k: v.contiguous() for k, v in net.state_dict().items()}, path,
+              metadata={"format": MODEL_FORMAT, "arch": net.config.arch_name, "config": json.dumps(config),
+                        "info": "{}"})
+    old = load_model_file(path)
+    assert old.config.target_frame == "world" and NetConfig.from_dict(config).target_frame == "world"
+    x = [torch.rand(3, 32, 32, generator=torch.Generator().manual_seed(1))]
+    with torch.no_grad():
+        raw = old(torch.stack(x)).double().numpy()[0]
+    p = _predict_inputs(old, x, [40.0])[0]
+    pan, tilt, _ = frames.decode_y(raw, 40.0)
+    assert p["pan_deg"] == pytest.approx(float(pan), abs=1e-9) and p["tilt_deg"] == pytest.approx(float(tilt), abs=1e-9)
+    assert np.allclose(p["y"], raw, atol=0)
+    with pytest.raises(ValueError):
+        NetConfig(target_frame="sky")
+
+
+def test_resuming_with_another_target_frame_is_one_error(tmp_path):
+    """A run saved before target_frame existed was a world run: resuming it in the camera
+    frame is refused with a TrainingError naming the setting."""
+    from relight.errors import TrainingError
+    from relight.net.train import TrainConfig, _check_resume_compatible, net_config
+    cfg = TrainConfig(data_dir=str(tmp_path), target_frame="camera")
+    saved = {k: v for k, v in cfg.to_dict().items() if k != "target_frame"}
+    with pytest.raises(TrainingError, match="target_frame was 'world'"):
+        _check_resume_compatible(saved, cfg)
+    assert net_config(cfg).target_frame == "camera" and net_config(cfg, saved).target_frame == "world"
+    with pytest.raises(TrainingError):
+        TrainConfig(data_dir=str(tmp_path), target_frame="sky")

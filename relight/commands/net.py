@@ -63,6 +63,11 @@ def add_commands(sub) -> None:
                    help="camera-pipeline augmentation of --source exr at training time: photo = exposure "
                         "+-2 EV, sensor noise, vignetting, blur, sRGB/gamma/filmic tone curves, JPEG 40-100 "
                         "(default none: as the PNGs are written; relight/net/augment.py)")
+    t.add_argument("--target-frame", choices=["world", "camera"], default="world",
+                   help="what the network learns: world = the paper's 7-vector, the light relative to the "
+                        "camera in the world's angles (default); camera = the light in the camera frame "
+                        "(the paper's encoding for a level camera), turned into the world with the camera "
+                        "tilt when decoded; recorded in the model file (docs/photo.md)")
     t.add_argument("--quiet", action="store_true", help="no progress bar")
     t.set_defaults(func=cmd_train)
 
@@ -123,6 +128,7 @@ def cmd_train(args) -> int:
                       max_minutes=args.max_minutes, width=args.width, arch=args.arch,
                       kappa_detach=not args.kappa_into_features,
                       camera_weight=float(args.camera_weight), source=args.source, augment=args.augment,
+                      target_frame=args.target_frame,
                       loss_weights=dataclasses.replace(args.loss_weights, kappa=args.kappa_weight))
     row = train(cfg, args.out, resume=args.resume, progress=not args.quiet)
     if row:

@@ -103,15 +103,16 @@ class CalibrationConfig:
 def held_out_outputs(model, dataset: LightDataset, flip: bool = True, batch_size: int = 64,
                      progress: bool = False) -> dict:
     """The frozen network on every image of ``dataset`` (and its mirror image with
-    ``flip``): ``{"embedding" (M, embed), "y_pred" (M, 7), "y_true" (M, 7),
-    "camera_tilt_deg" (M,), "image" (M,) index of the source image}`` (torch, float32),
+    ``flip``): ``{"embedding" (M, embed), "y_pred" (M, 7), "y_true" (M, 7) (in the dataset's
+    target frame), "target_tilt_deg" (M,) (the camera tilt they decode with:
+    :meth:`LightDataset.target_tilts`), "image" (M,) index of the source image}`` (torch, float32),
     M = N or 2N; ``progress`` shows a bar. The model's train/eval mode is restored."""
     from tqdm import tqdm
     was_training = model.training
     model.eval()
     emb, ys = [], []
     targets = np.stack([dataset.target(i) for i in range(len(dataset))]) if len(dataset) else np.zeros((0, 7))
-    cams = dataset.truth()["camera_tilt_deg"]
+    cams = dataset.target_tilts(range(len(dataset)))
     views = [False, True] if flip else [False]
     batches = [(m, start) for m in views for start in range(0, len(dataset), batch_size)]
     try:
@@ -129,13 +130,13 @@ def held_out_outputs(model, dataset: LightDataset, flip: bool = True, batch_size
     n = len(dataset)
     return {"embedding": torch.cat(emb) if emb else torch.zeros((0, model.config.embed)),
             "y_pred": torch.cat(ys) if ys else torch.zeros((0, 7)), "y_true": y_true,
-            "camera_tilt_deg": torch.from_numpy(np.tile(cams, len(views))).float(),
+            "target_tilt_deg": torch.from_numpy(np.tile(cams, len(views))).float(),
             "image": torch.from_numpy(np.tile(np.arange(n), len(views)))}
 
 
 def _cos_error(out: dict) -> torch.Tensor:
-    mu = direction_from_y(out["y_pred"], out["camera_tilt_deg"])
-    x = direction_from_y(out["y_true"], out["camera_tilt_deg"])
+    mu = direction_from_y(out["y_pred"], out["target_tilt_deg"])
+    x = direction_from_y(out["y_true"], out["target_tilt_deg"])
     return (mu * x).sum(dim=1).clamp(-1.0, 1.0)
 
 
@@ -187,7 +188,8 @@ def calibrate_kappa(model, data_dir, cfg: CalibrationConfig = CalibrationConfig(
     if not getattr(model, "has_kappa", False):
         raise TrainingError("the model has no kappa head (trained with --kappa-weight 0): nothing to calibrate")
     folders = dataset_folders(data_dir)
-    dataset = LightDataset(folders, cfg.split, model.config.res, cache=False)
+    dataset = LightDataset(folders, cfg.split, model.config.res, cache=False,
+                           target_frame=model.config.target_frame)
     if len(dataset) < MIN_IMAGES:
         raise DatasetError(f"{', '.join(folders)}: split {cfg.split!r} holds {len(dataset)} images; calibration needs "
                            f"at least {MIN_IMAGES}")

@@ -11,6 +11,9 @@ Input encoding (the same at training and prediction time):
 Augmentation keeps labels true: a horizontal flip mirrors the scene, so the light's
 pan relative to the camera becomes ``360 - pan_rel``; in the 7-vector
 ``y0 = sin(pan_c - pan_l) = -sin(pan_rel)`` changes sign and everything else stays.
+The same holds for a camera-frame target (``target_frame="camera"``,
+:func:`relight.frames.y_to_target`): the mirror negates camera x, the pan of its level
+camera.
 """
 from __future__ import annotations
 
@@ -26,6 +29,7 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
+from relight import frames
 from relight.dataset import SPLIT_CHOICES, DatasetError, read_manifest, safe_join, split_records
 
 SPLITS = SPLIT_CHOICES   # one split or "all"
@@ -120,12 +124,14 @@ class LightDataset(Dataset):
     mirrored with probability 1/2, decided by ``(seed, epoch, index)`` alone (set
     :attr:`epoch` each epoch), so a resumed run sees the same augmentation. Decoded
     images are cached in memory as uint8 (``res * res * 3`` bytes each) when ``cache``
-    is true.
+    is true. :meth:`target` gives the label in ``target_frame`` (:data:`relight.frames.TARGET_FRAMES`:
+    the stored paper's y, or the light in the camera frame), decoded with
+    :meth:`target_tilts`.
     """
 
     def __init__(self, data_dir, split: str = "train", res: int = 128,
                  flip: bool = False, seed: int = 0, cache: bool = True, records: list[dict] | None = None,
-                 image_key: str = "image", source: str = "image", augment=None):
+                 image_key: str = "image", source: str = "image", augment=None, target_frame: str = "world"):
         self.data_dirs = dataset_folders(data_dir)
         self.data_dir = self.data_dirs[0]
         if records is not None and len(self.data_dirs) > 1:
@@ -135,6 +141,9 @@ class LightDataset(Dataset):
             raise ValueError(f"source must be one of {', '.join(SOURCES)}, got {source!r}")
         self.source = source         # "image": the 8-bit PNG; "exr": the linear EXR through ``augment``
         self.augment = augment       # a relight.net.augment.PipelineAugment (source "exr"), or None
+        if target_frame not in frames.TARGET_FRAMES:
+            raise ValueError(f"target_frame must be one of {', '.join(frames.TARGET_FRAMES)}, got {target_frame!r}")
+        self.target_frame = target_frame
         self.split = split
         self.res, self.flip, self.seed, self.cache = res, flip, seed, cache
         self.epoch = 0
@@ -200,10 +209,22 @@ class LightDataset(Dataset):
         return img
 
     def target(self, i: int) -> np.ndarray:
+        """The label of item ``i`` in :attr:`target_frame`, ``(7,)`` float64 (not mirrored)."""
         y = np.asarray(self.records[i]["y"], dtype=np.float64)
         if y.shape != (7,) or not np.all(np.isfinite(y)):
             raise DatasetError(f"record {self.records[i].get('id')!r}: 'y' must be 7 finite numbers")
-        return y
+        if self.target_frame == "world":
+            return y
+        return frames.y_to_target(y, self._camera_tilt(i), self.target_frame)
+
+    def _camera_tilt(self, i: int) -> float:
+        return float(self.records[i]["camera"]["tilt_deg"])
+
+    def target_tilts(self, index) -> np.ndarray:
+        """The camera tilts ``(len(index),)`` (degrees) the targets of items ``index`` decode
+        with (:func:`relight.frames.target_tilt_deg`: the camera's own, or 0 in the camera frame)."""
+        return frames.target_tilt_deg(np.array([self._camera_tilt(int(i)) for i in index], dtype=np.float64),
+                                      self.target_frame)
 
     def flipped(self, i: int) -> bool:
         """Whether item ``i`` is mirrored in the current epoch."""

@@ -12,14 +12,15 @@ Report folder contents:
     per_image.csv      id, truth, prediction and the four errors of every image; for a
                        model with a kappa head also ``kappa`` and ``cone90_deg``
     predictions.json   relight.predictions/v1 (pan_deg = predicted pan_rel, tilt_deg,
-                       rgb unit norm, and the raw y; cct_k, duv; kappa, cone90_deg),
+                       rgb unit norm, y: the raw outputs as the paper's 7-vector (of a
+                       camera-frame model: turned into it); cct_k, duv; kappa, cone90_deg),
                        the input of ``relight compare``
     reliability.png    reliability diagram of the direction cones (kappa head only)
 """
 from __future__ import annotations
 
 __all__ = [
-    "COLOUR_STATS", "run_model", "decode_outputs", "extra_fields", "cct_errors", "errors_from_y",
+    "COLOUR_STATS", "run_model", "target_frame_of", "paper_y", "decode_outputs", "extra_fields", "cct_errors", "errors_from_y",
     "run_model_on_engine", "evaluate",
 ]
 
@@ -77,10 +78,26 @@ def run_model(model, dataset: LightDataset, batch_size: int = 64, with_kappa: bo
     return y, kappa, (np.concatenate(cameras) if cameras else np.zeros(0)) if has_camera else None
 
 
-def decode_outputs(y_pred: np.ndarray, camera_tilt_deg) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(pan_rel_deg, tilt_deg, rgb unit norm)`` of raw outputs ``(N, 7)`` for cameras
-    at pan 0 and tilt ``camera_tilt_deg`` (degrees, (N,) or scalar)."""
-    pan, tilt, rgb = frames.decode_y(y_pred, camera_tilt_deg, 0.0)
+def target_frame_of(model) -> str:
+    """What a model's 7 outputs mean (:attr:`relight.net.model.NetConfig.target_frame`):
+    ``"world"`` (the paper's y; also any model without the setting) or ``"camera"``."""
+    return getattr(getattr(model, "config", None), "target_frame", "world")
+
+
+def paper_y(y_pred: np.ndarray, camera_tilt_deg, target_frame: str = "world") -> np.ndarray:
+    """The paper's 7-vectors of raw outputs ``(N, 7)`` of a model of ``target_frame``
+    (:func:`relight.frames.target_to_y`), for cameras at pan 0 and tilt ``camera_tilt_deg``:
+    the outputs themselves in the world frame; what a predictions file stores as ``y``."""
+    return frames.target_to_y(y_pred, camera_tilt_deg, target_frame)
+
+
+def decode_outputs(y_pred: np.ndarray, camera_tilt_deg, target_frame: str = "world"
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(pan_rel_deg, tilt_deg, rgb unit norm)`` of raw outputs ``(N, 7)`` of a model of
+    ``target_frame`` (:func:`target_frame_of`) for cameras at pan 0 and tilt
+    ``camera_tilt_deg`` (degrees, (N,) or scalar). Every decoding of a network's outputs
+    goes through here."""
+    pan, tilt, rgb = frames.decode_y(paper_y(y_pred, camera_tilt_deg, target_frame), camera_tilt_deg, 0.0)
     rgb = np.clip(np.asarray(rgb, dtype=np.float64), 0.0, None)
     rgb = rgb / np.maximum(np.linalg.norm(rgb, axis=-1, keepdims=True), 1e-300)
     return pan, tilt, rgb
@@ -125,9 +142,10 @@ def _format_cct(c: dict, colour: dict) -> str:
             "(|Duv| > 0.05 or CCT outside 1000-25000 K) have no CCT and are left out.\n")
 
 
-def errors_from_y(y_pred: np.ndarray, truth: dict) -> dict:
-    """Per-image errors in degrees (pan, tilt, direction, colour; arrays (N,))."""
-    pan, tilt, rgb = decode_outputs(y_pred, truth["camera_tilt_deg"])
+def errors_from_y(y_pred: np.ndarray, truth: dict, target_frame: str = "world") -> dict:
+    """Per-image errors in degrees (pan, tilt, direction, colour; arrays (N,)) of raw outputs
+    of a model of ``target_frame``, decoded with the true camera tilts."""
+    pan, tilt, rgb = decode_outputs(y_pred, truth["camera_tilt_deg"], target_frame)
     return metrics.light_errors(pan, tilt, rgb, truth["pan_rel_deg"], truth["tilt_deg"], truth["rgb"])
 
 
@@ -200,7 +218,9 @@ def evaluate(model, data_dir: str | os.PathLike, out_dir: str | os.PathLike, spl
     else:
         y_pred, kappa = run_model_on_engine(model, dataset, batch_size, scheduler)
     truth = dataset.truth()
-    pan, tilt, rgb = decode_outputs(y_pred, truth["camera_tilt_deg"])
+    frame = target_frame_of(model)
+    pan, tilt, rgb = decode_outputs(y_pred, truth["camera_tilt_deg"], frame)
+    y_paper = paper_y(y_pred, truth["camera_tilt_deg"], frame)
     errors = metrics.light_errors(pan, tilt, rgb, truth["pan_rel_deg"], truth["tilt_deg"], truth["rgb"])
     tables = metrics.error_tables(errors, truth["tilt_deg"], truth["pan_rel_deg"])
     pan_split = metrics.pan_where_defined(errors["pan"], truth["tilt_deg"])
@@ -227,7 +247,7 @@ def evaluate(model, data_dir: str | os.PathLike, out_dir: str | os.PathLike, spl
     header = (f"# Evaluation of {model_name or 'model'}\n\ndataset: {os.path.abspath(data_dir)} "
               f"(split {split}, {len(dataset)} images)\n\n")
     entries = [{"id": pid, "pan_deg": float(pan[i]), "tilt_deg": float(tilt[i]),
-                "rgb": [float(v) for v in rgb[i]], "y": [float(v) for v in y_pred[i]], **extras[i]}
+                "rgb": [float(v) for v in rgb[i]], "y": [float(v) for v in y_paper[i]], **extras[i]}
                for i, pid in enumerate(truth["id"])]
     with Transaction(inputs=[data_dir]) as t:   # the four files, all or none
         t.makedirs(out_dir)

@@ -67,7 +67,8 @@ def light_loss(pred: torch.Tensor, target: torch.Tensor, weights: LossWeights = 
     Returns the scalar loss, or with ``parts=True`` a dict with ``total``, ``pan``
     (MSE over y0, y1), ``tilt`` (MSE over y2, y3) and ``colour`` (mean angular error,
     radians), plus ``objective``: ``total`` + ``weights.kappa`` x ``kappa_nll`` when
-    ``kappa`` (``(N,)``) and ``camera_tilt_deg`` (``(N,)``, degrees) are given, else
+    ``kappa`` (``(N,)``) and ``camera_tilt_deg`` (``(N,)``, degrees: the tilt the targets decode
+    with, :meth:`relight.net.data.LightDataset.target_tilts`) are given, else
     ``total`` (``kappa_nll`` is then None).
     """
     if pred.shape != target.shape or pred.ndim != 2 or pred.shape[1] != 7:

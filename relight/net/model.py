@@ -42,6 +42,8 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from relight.frames import TARGET_FRAMES
+
 ARCH_NAME = "sid2-inception-small/v1"
 PAPER_ARCH_NAME = "sid2-inception-paper/v1"
 ARCHES = {"small": ARCH_NAME, "paper": PAPER_ARCH_NAME}   # NetConfig.arch -> name in model files
@@ -69,6 +71,11 @@ class NetConfig:
             needs no assumed camera tilt (:meth:`LightNet.forward_full`).
         ood_dims: principal components of the out-of-distribution detector
             (:mod:`relight.net.ood`; 0: none fitted).
+        target_frame: what the 7 outputs mean, a name of :data:`relight.frames.TARGET_FRAMES`:
+            ``"world"`` (the paper's y, decoded with the camera tilt) or ``"camera"`` (the
+            light in the camera frame, the paper's encoding for a level camera); files
+            written before it existed are ``"world"``. Decode through
+            :func:`relight.net.evaluate.decode_outputs` (:func:`relight.frames.target_to_y`).
     """
     res: int = 128
     width: int = 32
@@ -80,6 +87,7 @@ class NetConfig:
     kappa_detach: bool = True
     camera_head: bool = False
     ood_dims: int = 0
+    target_frame: str = "world"
 
     def __post_init__(self):
         for name in ("res", "width", "embed", "head_hidden", "grid"):
@@ -95,6 +103,9 @@ class NetConfig:
         for name in ("kappa_head", "kappa_detach", "camera_head"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"NetConfig.{name} must be true or false, got {getattr(self, name)!r}")
+        if self.target_frame not in TARGET_FRAMES:
+            raise ValueError(f"NetConfig.target_frame must be one of {', '.join(TARGET_FRAMES)}, "
+                             f"got {self.target_frame!r}")
 
     @classmethod
     def for_arch(cls, arch: str = "small", **kwargs) -> "NetConfig":
@@ -112,8 +123,8 @@ class NetConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> "NetConfig":
-        """Config of a stored dict; files written before ``arch`` / ``kappa_head``
-        existed are the small encoder without a kappa head."""
+        """Config of a stored dict; files written before ``arch`` / ``kappa_head`` /
+        ``target_frame`` existed are the small encoder without a kappa head, world frame."""
         known = {k: d[k] for k in cls.__dataclass_fields__ if k in d}
         known.setdefault("arch", "small")
         known.setdefault("kappa_head", False)

@@ -83,6 +83,7 @@ def score_dataset(model, data_dir: str, split: str = "all", limit: int | None = 
     ``world_direction_deg`` (Table 1's direction error: decoded with the true camera tilt),
     ``colour_deg``, ``covered``, ``ood``, ``camera_tilt_error_deg``."""
     from relight.net.data import LightDataset
+    from relight.net.evaluate import decode_outputs, target_frame_of
     from relight.net.predict import _predict_inputs
     ds = LightDataset(data_dir, split, int(model.config.res), cache=False)
     if limit is not None:
@@ -96,7 +97,10 @@ def score_dataset(model, data_dir: str, split: str = "all", limit: int | None = 
     pred_cam = np.array([p["to_light_camera"] for p in preds], dtype=np.float64).reshape(-1, 3)
     err = metrics.angle_deg(pred_cam, true_cam)
     y = np.array([p["y"] for p in preds], dtype=np.float64).reshape(-1, 7)
-    pan_w, tilt_w = frames.decode_y(y, truth["camera_tilt_deg"])[:2]
+    # the paper's y with the tilt the prediction used -> the network's own target -> decoded with the true tilt
+    frame = target_frame_of(model)
+    raw = frames.y_to_target(y, np.array([p["camera_tilt_deg"] for p in preds], dtype=np.float64), frame)
+    pan_w, tilt_w = decode_outputs(raw, truth["camera_tilt_deg"], frame)[:2]
     world = metrics.direction_error_deg(pan_w, tilt_w, truth["pan_rel_deg"], truth["tilt_deg"])
     rgb = np.array([p["rgb"] for p in preds], dtype=np.float64).reshape(-1, 3)
     return {"id": [r["id"] for r in ds.records], "direction_deg": err, "world_direction_deg": np.asarray(world),

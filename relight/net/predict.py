@@ -5,7 +5,9 @@ training time (:func:`relight.net.data.prepare_srgb8`): linear images (EXR, or
 arrays from a renderer) are first encoded to 8-bit sRGB with
 :func:`relight.imageio.to_srgb8` -- the way the dataset PNGs were written -- while
 PNG/JPEG files are taken as 8-bit sRGB already. The output 7-vector is decoded with
-the stated camera tilt (photographs: the paper assumes 45 degrees) and camera pan 0.
+the stated camera tilt (photographs: the paper assumes 45 degrees) and camera pan 0; a
+model trained in the camera frame (``--target-frame camera``) gives the light in the
+camera frame, which that tilt turns into the world (:func:`relight.net.evaluate.decode_outputs`).
 
 A grayscale input (grey PNG/EXR, or RGB whose channels agree within
 :data:`ACHROMATIC_TOLERANCE` code values in every pixel, see :func:`is_achromatic`)
@@ -21,7 +23,7 @@ import torch
 
 from relight import frames
 from relight.net.data import prepare_srgb8
-from relight.net.evaluate import decode_outputs, extra_fields
+from relight.net.evaluate import decode_outputs, extra_fields, paper_y, target_frame_of
 from relight.net.io import SHIPPED_MODEL, ModelFileError, load_model_file
 
 DEFAULT_CAMERA_TILT_DEG = frames.PHOTO_CAMERA_TILT_DEG  # the paper's assumption for photographs
@@ -121,7 +123,9 @@ def _predict_inputs(model, inputs: list[torch.Tensor], camera_tilt_deg, batch_si
             tilts, how = np.clip(np.concatenate(cameras), -89.0, 89.0), "predicted"
         else:
             tilts, how = np.full(len(inputs), DEFAULT_CAMERA_TILT_DEG), "assumed"
-    pan, tilt, rgb = decode_outputs(y, tilts)
+    frame = target_frame_of(model)
+    pan, tilt, rgb = decode_outputs(y, tilts, frame)
+    y = paper_y(y, tilts, frame)
     extras = extra_fields(rgb, np.concatenate(kappas) if kappas else None)
     for i, grey in enumerate(achromatic or []):
         if grey:
@@ -157,7 +161,8 @@ def predict_arrays(model, images_linear: list[np.ndarray], camera_tilt_deg: list
     Returns:
         One dict per image: ``pan_deg`` (light pan relative to the camera, [0, 360),
         0 = front, 90 = camera's right), ``tilt_deg`` (light elevation), ``rgb``
-        (unit norm, linear), ``y`` (the raw 7-vector), ``cct_k`` and ``duv`` (None
+        (unit norm, linear), ``y`` (the raw 7-vector; a camera-frame model's turned into
+        the paper's with the camera tilt used), ``cct_k`` and ``duv`` (None
         where the colour is far from the Planckian locus) and, for a model with a
         kappa head, ``kappa`` and ``cone90_deg`` (radius of the 90% cone, degrees);
         ``colour_reliable`` = False for a grayscale image (:func:`is_achromatic`);

@@ -97,6 +97,10 @@ class TrainConfig:
         augment: camera-pipeline augmentation of an ``exr`` source, a key of
             :data:`relight.net.augment.AUGMENTS` (``"none"``: as the PNGs are written;
             ``"photo"``: exposure, noise, vignetting, blur, tone curve, JPEG).
+        target_frame: what the network learns, a name of :data:`relight.frames.TARGET_FRAMES`:
+            ``"world"`` (the paper's 7-vector, decoded with the camera tilt) or ``"camera"``
+            (the light in the camera frame, :func:`relight.frames.y_to_target`); recorded
+            in the model file (``NetConfig.target_frame``).
         max_minutes: stop after the first epoch that ends past this wall time
             (minutes from the start of this invocation; None: no limit). A later
             ``resume`` continues from there.
@@ -124,6 +128,7 @@ class TrainConfig:
     camera_weight: float = 0.0
     source: str = "image"
     augment: str = "none"
+    target_frame: str = "world"
 
     def __post_init__(self):
         folders = tuple(dataset_folders(self.data_dir))   # one folder stays a plain string (older runs)
@@ -156,6 +161,9 @@ class TrainConfig:
             raise TrainingError("--augment works on the linear EXRs: give --source exr")
         if self.image_key not in ("image", "image_masked"):
             raise TrainingError(f"image_key must be 'image' or 'image_masked', got {self.image_key!r}")
+        from relight.frames import TARGET_FRAMES
+        if self.target_frame not in TARGET_FRAMES:
+            raise TrainingError(f"target_frame must be one of {', '.join(TARGET_FRAMES)}, got {self.target_frame!r}")
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -163,7 +171,7 @@ class TrainConfig:
 
 def _check_resume_compatible(saved: dict, cfg: TrainConfig) -> None:
     for key in ("res", "batch_size", "seed", "width", "flip", "arch", "kappa_detach", "init", "image_key",
-                "camera_weight"):
+                "camera_weight", "target_frame"):
         if key not in saved and key not in LATER_DEFAULTS:
             continue
         was = saved.get(key, LATER_DEFAULTS.get(key))
@@ -172,7 +180,7 @@ def _check_resume_compatible(saved: dict, cfg: TrainConfig) -> None:
 
 
 # Settings added after the first runs: a settings.json without the key means this value.
-LATER_DEFAULTS = {"camera_weight": 0.0, "source": "image", "augment": "none"}
+LATER_DEFAULTS = {"camera_weight": 0.0, "source": "image", "augment": "none", "target_frame": "world"}
 
 
 def net_config(cfg: TrainConfig, saved: dict | None = None) -> NetConfig:
@@ -181,12 +189,13 @@ def net_config(cfg: TrainConfig, saved: dict | None = None) -> NetConfig:
     if saved is None:
         return NetConfig.for_arch(cfg.arch, res=cfg.res, width=cfg.width,
                                   kappa_head=cfg.loss_weights.kappa > 0, kappa_detach=cfg.kappa_detach,
-                                  camera_head=cfg.camera_weight > 0)
+                                  camera_head=cfg.camera_weight > 0, target_frame=cfg.target_frame)
     weights = saved.get("loss_weights") or {}
     return NetConfig.for_arch(saved.get("arch", "small"), res=cfg.res, width=cfg.width,
                               kappa_head=float(weights.get("kappa", 0.0)) > 0,
                               kappa_detach=bool(saved.get("kappa_detach", True)),
-                              camera_head=float(saved.get("camera_weight", 0.0)) > 0)
+                              camera_head=float(saved.get("camera_weight", 0.0)) > 0,
+                              target_frame=saved.get("target_frame", "world"))
 
 
 def _camera_tilts(dataset: LightDataset, index) -> torch.Tensor:
@@ -398,11 +407,14 @@ def _restore(cfg: TrainConfig, out_dir: str, resume: bool, ddp, writer: bool) ->
             init_model = with_heads(init_model, ood_dims=0)
         if cfg.camera_weight > 0 and not init_model.has_camera:   # a new camera head on the loaded network
             init_model = with_camera_head(init_model)
+        if init_model.config.target_frame != cfg.target_frame:   # its outputs learn the other frame's target
+            init_model = with_heads(init_model, target_frame=cfg.target_frame)
     from relight.net.augment import AUGMENTS
     train_set = LightDataset(cfg.data_dir, cfg.train_split, cfg.res, flip=cfg.flip, seed=cfg.seed,
-                             image_key=cfg.image_key, source=cfg.source,
+                             image_key=cfg.image_key, source=cfg.source, target_frame=cfg.target_frame,
                              augment=AUGMENTS[cfg.augment]() if cfg.augment != "none" else None)
-    val_set = LightDataset(cfg.data_dir, cfg.val_split, cfg.res, image_key=cfg.image_key, source=cfg.source)
+    val_set = LightDataset(cfg.data_dir, cfg.val_split, cfg.res, image_key=cfg.image_key, source=cfg.source,
+                           target_frame=cfg.target_frame)
     if ddp is not None:
         _ddp_agree(train_set), _ddp_agree(val_set)
     if len(train_set) == 0:
@@ -472,7 +484,8 @@ def _train_epoch(run: _Run, cfg: TrainConfig, epoch: int, progress: bool, ddp) -
         y_pred, kappa, camera = model.forward_full(x, calibrated=False) if run.net is None else run.net(x)
         tilts = _camera_tilts(train_set, index)
         parts = light_loss(y_pred, y, cfg.loss_weights, parts=True, kappa=kappa,
-                           camera_tilt_deg=tilts if kappa is not None else None)
+                           camera_tilt_deg=torch.from_numpy(train_set.target_tilts(index))
+                           if kappa is not None else None)
         parts["camera"] = None
         if camera is not None:   # the camera-tilt head (--camera-weight)
             parts["camera"] = camera_loss(camera, tilts)
@@ -513,7 +526,7 @@ def _validate(run: _Run, cfg: TrainConfig, evaluation_set: LightDataset, train_k
         t = np.radians(camera_val)
         val_loss += cfg.camera_weight * float(camera_loss(torch.from_numpy(np.stack([np.sin(t), np.cos(t)], 1)),
                                                           torch.from_numpy(true_tilts)))
-    errs = errors_from_y(y_val, evaluation_set.truth())
+    errs = errors_from_y(y_val, evaluation_set.truth(), cfg.target_frame)
     calibration = {}
     if kappa_val is not None:   # temperature scaling of kappa on val (the model stores T)
         raw = kappa_val * float(model.kappa_temperature)

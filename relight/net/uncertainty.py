@@ -93,7 +93,10 @@ def pan_halfwidth_deg(cone_deg, tilt_deg) -> np.ndarray:
 def direction_from_y(y: torch.Tensor, camera_tilt_deg: torch.Tensor) -> torch.Tensor:
     """World-frame unit vectors toward the light ``(N, 3)`` of 7-vectors ``(N, 7)``
     (raw network outputs are fine) for cameras at pan 0 and tilt ``camera_tilt_deg``
-    (``(N,)``, degrees). Same vector as ``frames.direction(*frames.decode_y(y)[:2])``."""
+    (``(N,)``, degrees). Same vector as ``frames.direction(*frames.decode_y(y)[:2])``.
+    For the targets of a camera-frame model give tilt 0 (:func:`relight.frames.target_tilt_deg`):
+    the vectors are then the camera-frame directions in a level camera's world, and the
+    angles between them are the directions' true angles."""
     pan = y[:, 0:2] / y[:, 0:2].norm(dim=1, keepdim=True).clamp_min(PAIR_EPS)
     dtilt = y[:, 2:4] / y[:, 2:4].norm(dim=1, keepdim=True).clamp_min(PAIR_EPS)
     # pan_rel = -(pan_c - pan_l): cos p = y1, sin p = -y0

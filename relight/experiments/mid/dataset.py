@@ -406,12 +406,13 @@ def predict_split(model, data_dir: str, image_key: str = "image", split: str = "
     """A model's predictions on one split of a MID-like dataset: ``(records, pred)`` with
     ``pred = {pan_rel_deg, tilt_deg, rgb}`` decoded with each record's camera tilt."""
     from relight.net.data import LightDataset
-    from relight.net.evaluate import decode_outputs, run_model
+    from relight.net.evaluate import decode_outputs, run_model, target_frame_of
     ds = LightDataset(data_dir, split, res or model.config.res, image_key=image_key)
     if len(ds) == 0:
         raise DatasetError(f"{data_dir}: no records in split {split!r}")
     y = run_model(model, ds, 64)
-    pan, tilt, rgb = decode_outputs(y, np.array([r["camera"]["tilt_deg"] for r in ds.records]))
+    pan, tilt, rgb = decode_outputs(y, np.array([r["camera"]["tilt_deg"] for r in ds.records]),
+                                    target_frame_of(model))
     return ds.records, {"pan_rel_deg": np.asarray(pan), "tilt_deg": np.asarray(tilt), "rgb": np.asarray(rgb)}
 
 
