@@ -32,7 +32,6 @@ import numpy as np
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, REPO)
-SHARED = os.path.join(REPO, "..", "shared", "data")
 DEVSET_SEED = 71
 
 
@@ -99,6 +98,9 @@ def main(argv=None) -> int:
     ap.add_argument("--camera-tilt", type=at.float_in(-89.0, 89.0, "a camera tilt in degrees"), default=None,
                     help="decode with this camera tilt instead of each model's own (or the paper's 45)")
     ap.add_argument("--json", default=None, help="also write every summary to this JSON file")
+    ap.add_argument("--photos", default=None,
+                    help="folder holding psm_objects/ and psm_spheres/ (default: $RELIGHT_SHARED_DATA, "
+                         "else shared/data next to the checkout)")
     args = ap.parse_args(argv)
     from relight.errors import RelightError
     from relight.net import photos
@@ -106,17 +108,18 @@ def main(argv=None) -> int:
     try:
         models = [(m or "shipped", load_model(m)) for m in (args.model or [None])]
         sets = []
-        objects = os.path.join(SHARED, "psm_objects")
-        spheres = os.path.join(SHARED, "psm_spheres")
+        shared = photos.shared_data_dir(args.photos)
+        objects = os.path.join(shared, "psm_objects")
+        spheres = os.path.join(shared, "psm_spheres")
         if os.path.isdir(objects):
             sets.append(("psm_objects (60 photos)", "photo", objects, None))
         else:
-            print("psm_objects: skipped (shared/data/psm_objects not present)")
+            print(f"psm_objects: skipped ({objects} not present)")
         if os.path.isdir(spheres):
             sets.append(("psm_spheres gray ball", "photo", spheres, ("gray",)))
             sets.append(("psm_spheres chrome ball", "photo", spheres, ("chrome",)))
         else:
-            print("psm_spheres: skipped (shared/data/psm_spheres not present)")
+            print(f"psm_spheres: skipped ({spheres} not present)")
         if not args.no_devset:
             mitsuba, cycles, agx = ensure_devset(args.devset, args.n)
             sets.append((f"dev set, Mitsuba ({args.n} default rooms)", "data", mitsuba, None))

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 
 import numpy as np
 import pytest
@@ -423,3 +424,13 @@ def test_resuming_with_another_target_frame_is_one_error(tmp_path):
     assert net_config(cfg).target_frame == "camera" and net_config(cfg, saved).target_frame == "world"
     with pytest.raises(TrainingError):
         TrainConfig(data_dir=str(tmp_path), target_frame="sky")
+
+
+def test_shared_data_dir_explicit_then_environment_then_next_to_the_checkout(monkeypatch, tmp_path):
+    from relight.net.photos import SHARED_DATA_ENV, shared_data_dir
+    monkeypatch.delenv(SHARED_DATA_ENV, raising=False)
+    repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    assert shared_data_dir() == os.path.normpath(os.path.join(repo, "..", "shared", "data"))
+    monkeypatch.setenv(SHARED_DATA_ENV, str(tmp_path))
+    assert shared_data_dir() == str(tmp_path)
+    assert shared_data_dir("/elsewhere") == "/elsewhere"

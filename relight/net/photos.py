@@ -24,7 +24,23 @@ import numpy as np
 
 from relight import frames, metrics
 
-__all__ = ["read_photo_set", "score_photo_set", "score_dataset", "summary"]
+__all__ = ["SHARED_DATA_ENV", "shared_data_dir", "read_photo_set", "score_photo_set", "score_dataset", "summary"]
+
+SHARED_DATA_ENV = "RELIGHT_SHARED_DATA"
+
+
+def shared_data_dir(explicit: str | None = None) -> str:
+    """The folder of the real-photo evaluation sets (``psm_objects``, ``psm_spheres``):
+    ``explicit`` when given, else ``$RELIGHT_SHARED_DATA``, else ``shared/data`` next to
+    the checkout (``<repo>/../shared/data``). A worktree or another clone elsewhere points
+    at the same photographs through the variable. The folder may be absent: callers skip."""
+    if explicit:
+        return explicit
+    env = os.environ.get(SHARED_DATA_ENV)
+    if env:
+        return env
+    repo = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    return os.path.normpath(os.path.join(repo, "..", "shared", "data"))
 
 PHOTO_NAME = re.compile(r"^(?P<name>[A-Za-z0-9_-]+)\.(?P<light>\d+)\.(png|jpg|jpeg)$", re.IGNORECASE)
 
