@@ -5,10 +5,20 @@
 #   train: 50,000 images, seed 201, split 90/10 -> ~45,000 train + ~5,000 val
 # 128 px, multijitter, 16 spp (2% noise); camera-pipeline effects are applied at training time
 # to the stored linear EXRs (relight train --source exr --augment photo), not baked in here.
+# With FACTORS=1 the sets also carry the second round's factors (glossy and metal objects,
+# the shipped meshes, lights near the camera: scenes/configs/photo_train_factors.json) and
+# go to photo-test-factors / photo-train-factors.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=${1:-/root/relight-data}
 RELIGHT=${RELIGHT:-.venv/bin/relight}
-"$RELIGHT" generate --preset photo --count 2500 --out "$ROOT/photo-test" --seed 202
-"$RELIGHT" generate --preset photo --count 50000 --out "$ROOT/photo-train" --seed 201 \
-    --config scenes/configs/sid2_train.json
+if [ "${FACTORS:-0}" = 1 ]; then
+    TRAIN_CONFIG=scenes/configs/photo_train_factors.json; SUFFIX=-factors
+    TEST_CONFIG=(--config scenes/configs/photo_materials_meshes_flash.json)
+else
+    TRAIN_CONFIG=scenes/configs/sid2_train.json; SUFFIX=""
+    TEST_CONFIG=()
+fi
+"$RELIGHT" generate --preset photo --count 2500 --out "$ROOT/photo-test$SUFFIX" --seed 202 "${TEST_CONFIG[@]}"
+"$RELIGHT" generate --preset photo --count 50000 --out "$ROOT/photo-train$SUFFIX" --seed 201 \
+    --config "$TRAIN_CONFIG"
