@@ -26,6 +26,7 @@ Errors are in degrees; a failure counts as 180.
 
     python benchmarks/bench_probe.py --set ~/relight-data/issue-29/set --make 40   # once (~15 min)
     python benchmarks/bench_probe.py --set ~/relight-data/issue-29/set [--qa DIR]
+    python benchmarks/bench_probe.py --set ~/relight-data/issue-29/set --floor   # what 8-bit leaves
 """
 from __future__ import annotations
 
@@ -159,17 +160,17 @@ def evaluate_set(folder: str, rows: list, detect: list, qa_dir: str | None, rend
         detect.append((name, miss, os.path.basename(path)))
 
 
-def evaluate_psm(rows: list, qa_dir: str | None) -> None:
+def evaluate_psm(rows: list, qa_dir: str | None, folder: str = PSM) -> None:
     from relight.errors import ProbeError
     from relight.probe import ortho as probes
     from relight.probe.detect import load_mask, read_probe_image
     from relight.probe.run import write_qa
 
-    lights = np.loadtxt(os.path.join(PSM, "lights.txt"), skiprows=1)
-    mask_path = os.path.join(PSM, "chrome.mask.png")
+    lights = np.loadtxt(os.path.join(folder, "lights.txt"), skiprows=1)
+    mask_path = os.path.join(folder, "chrome.mask.png")
     mask = load_mask(mask_path)
     for i, truth in enumerate(lights):
-        path = os.path.join(PSM, f"chrome.{i}.png")
+        path = os.path.join(folder, f"chrome.{i}.png")
         res = _probe(path, chrome_mask=mask_path)
         rows.append(("psm_spheres, mask", "front", _angle_deg(res.entry["to_light_camera"], truth), path))
         if qa_dir:
@@ -181,6 +182,38 @@ def evaluate_psm(rows: list, qa_dir: str | None) -> None:
         rows.append(("psm_spheres, automatic", "front", err, path))
         rows.append(("psm_spheres, orthographic + mask (previous)", "front",
                      _angle_deg(probes.chrome_light_direction(read_probe_image(path)[0], mask), truth), path))
+
+
+def png_floor(folder: str) -> None:
+    """What an 8-bit file leaves of the light's position (Cycles, circle exact): the
+    light's pixels are the connected region of the EXR, at the PNG's exposure, that the
+    PNG clips and holds the brightest one; their intensity centroid (what the EXR gives)
+    and their plain centroid (what the clipped plateau gives: a pixel the light touches
+    by 2% clips as one it fills), each reflected on the true sphere, against the truth."""
+    from scipy import ndimage
+
+    from relight.probe import geometry as geom
+    from relight.probe.detect import read_probe_image
+    errs: dict = {"EXR intensity centroid": [], "clipped-pixel centroid (8-bit)": []}
+    for scene_path in sorted(glob.glob(os.path.join(folder, "probe*.json"))):
+        with open(scene_path) as f:
+            d = json.load(f)
+        t = d["truth"]
+        exr = read_probe_image(scene_path[:-5] + ".cycles.exr")[0]
+        cam = geom.Camera.from_fov(exr.shape[1], exr.shape[0], t["fov_deg"])
+        sphere = geom.sphere_from_circle(cam, *t["chrome_circle"])
+        (x0, y0, x1, y1), _, s = geom.sphere_pixels(cam, sphere, rim_exclude_px=0.0)
+        crop = np.where(s["hit"], exr[y0:y1, x0:x1].mean(-1) * d["png_exposure"], 0.0)
+        labels, _ = ndimage.label(crop >= 1.0, np.ones((3, 3)))
+        ys, xs = np.nonzero(labels == labels[np.unravel_index(np.argmax(crop), crop.shape)])
+        for name, w in zip(errs, (crop[ys, xs], np.ones(len(xs)))):
+            px = np.array([np.average(xs + 0.5, weights=w) + x0])
+            py = np.array([np.average(ys + 0.5, weights=w) + y0])
+            hit = geom.surface(cam, sphere, px, py)
+            errs[name].append(_angle_deg(hit["reflect"][0], t["to_light_camera"]) if hit["hit"][0] else 180.0)
+    for name, e in errs.items():
+        print(f"8-bit floor, {name:<32} n {len(e)} median {np.median(e):.2f} p90 {np.percentile(e, 90):.2f} "
+              f"max {np.max(e):.2f}")
 
 
 def report(rows: list, detect: list, worst: int = 0) -> None:
@@ -217,12 +250,18 @@ def main() -> None:
     ap.add_argument("--renderers", default="cycles,mitsuba")
     ap.add_argument("--kinds", default="png,exr", help="which files of the set: png (8-bit) and/or exr")
     ap.add_argument("--no-psm", action="store_true", help="skip shared/data/psm_spheres")
+    ap.add_argument("--psm", default=PSM, help="the psm_spheres folder (default: shared/data next to the checkout)")
     ap.add_argument("--no-auto", action="store_true", help="circles given only (automatic detection is slow)")
     ap.add_argument("--qa", default=None, help="write QA overlays to this folder")
+    ap.add_argument("--floor", action="store_true",
+                    help="only the 8-bit floor: the light's position from the Cycles EXR's clipped pixels")
     ap.add_argument("--worst", type=at.int_in(0, 10_000, "a count"), default=8, help="list the worst N results")
     args = ap.parse_args()
     if args.make:
         make_set(args.set, args.make, args.spp)
+    if args.floor:
+        png_floor(args.set)
+        return
     if args.qa:
         os.makedirs(args.qa, exist_ok=True)
     rows: list = []
@@ -234,10 +273,10 @@ def main() -> None:
         print(f"no probe set at {args.set}: make it with --make 40")
     if args.no_psm:
         pass
-    elif os.path.isdir(PSM):
-        evaluate_psm(rows, args.qa)
+    elif os.path.isdir(args.psm):
+        evaluate_psm(rows, args.qa, args.psm)
     else:
-        print(f"psm_spheres not found at {os.path.normpath(PSM)}; real-photo part skipped")
+        print(f"psm_spheres not found at {os.path.normpath(args.psm)}; real-photo part skipped")
     print(f"\nsphere procedure benchmark: set {args.set}")
     report(rows, detect, args.worst)
 

@@ -414,3 +414,52 @@ def test_a_small_sphere_with_a_highlight_is_proposed_when_the_proposals_overflow
         return any(math.dist(c[:2], small[:2]) < 3 for c in detect.hough_circles(image))
     assert found(1)
     assert not found(0)      # on votes alone it is crowded out
+
+
+def test_the_hough_proposers_take_turns(monkeypatch):
+    # the classic proposer's many weak circles must not queue the fine one's best behind them
+    import cv2
+    lists = [[(20.0, 20.0, 10.0)], [(40.0 + 20 * k, 60.0, 9.0) for k in range(5)], [(130.0, 90.0, 8.0)]]
+    calls = iter(lists)
+    monkeypatch.setattr(cv2, "HoughCircles", lambda *a, **k: np.asarray([next(calls)], np.float32))
+    monkeypatch.setattr(detect, "MAX_CANDIDATES", 3)
+    monkeypatch.setattr(detect, "SPOT_PROPOSALS", 0)
+    got = detect.hough_circles(np.full((H, W, 3), 0.3))
+    assert [c[:2] for c in got] == [(20.5, 20.5), (40.5, 60.5), (130.5, 90.5)]
+
+
+def _lit_floor(strength=2.0):
+    """A broad bright reflection (a lit floor below the sphere, clipping in 8-bit):
+    reflected directions pointing down and away from the camera's axis."""
+    def extra(s):
+        r = s["reflect"]
+        return np.where((r[..., 1] < -0.35) & (r[..., 2] < 0.6), strength, 0.0)
+    return extra
+
+
+def test_a_chrome_sphere_mirroring_a_clipped_lit_floor_is_still_chrome():
+    # in 8-bit the lit floor's reflection clips as the highlight does and covers far more of
+    # the sphere than a highlight would: the chrome test looks at the brightest spot's own region
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 60.0, 8.0)
+    image = _quantise(_render(cam, sphere, np.array([0.3, 0.4, 0.87]), light_radius_deg=2.0, extra=_lit_floor()))
+    f = detect.sphere_features(image, cam, sphere)
+    clipped = int((image[..., 0] >= 1.0).sum())
+    assert f["blob_pixels"] < 0.25 * clipped           # the highlight's own region, not the floor's
+    assert f["blob_fraction"] <= detect.CHROME_MAX_BLOB_FRACTION
+    assert detect.is_chrome(f)
+
+
+def test_an_inner_reflection_disc_does_not_hide_the_chrome_sphere_around_it():
+    # scene-like figures: a uniform inner disc (diffuse-looking, better supported) and the
+    # chrome outline around it at 1.4 times its radius; a second chrome circle there, less
+    # supported, goes, while a better supported one replaces the first
+    disc = {"circle": (100.0, 100.0, 17.5), "edge_support": 0.48, "chrome": False}
+    sphere = {"circle": (103.0, 107.0, 24.3), "edge_support": 0.44, "chrome": True}
+    out = detect._merge_candidate(detect._merge_candidate([], disc), sphere)
+    assert any(c is sphere for c in out) and any(c is disc for c in out)
+    weaker = dict(sphere, edge_support=0.40, circle=(104.0, 107.0, 24.0))
+    assert not any(c is weaker for c in detect._merge_candidate(out, weaker))
+    stronger = dict(sphere, edge_support=0.5)
+    merged = detect._merge_candidate(out, stronger)
+    assert any(c is stronger for c in merged) and not any(c is sphere for c in merged)

@@ -35,7 +35,7 @@ import numpy as np
 from scipy import ndimage
 
 from relight.colour import srgb_decode, srgb_encode
-from relight.probe.geometry import (Camera, ProbeError, Sphere, fit_sphere, highlight_likelihood,
+from relight.probe.geometry import (TIE_FRACTION, Camera, ProbeError, Sphere, fit_sphere, highlight_likelihood,
                                     outline_circle, outline_polygon, sphere_from_circle, sphere_pixels)
 
 EDGE_SIGMA_PX = 0.7
@@ -275,16 +275,20 @@ def sphere_features(image: np.ndarray, camera: Camera, sphere: Sphere) -> dict:
     lambert_rms, lambert = _lambert_fit(n, lum)
     resid = min(resid, lambert_rms / max(mean, 1e-9))
     contrast = float(np.percentile(lum, 99.9) / max(np.median(lum), 1e-6))
-    # the largest connected region of pixels at least half the brightest, and how much of
+    # the brightest spot's region: of the connected regions of pixels at least half the
+    # brightest, the smallest holding a pixel within TIE_FRACTION of it (in 8-bit a lit
+    # floor's reflection clips as the highlight does, and may be much larger), and how much of
     # it the one-light diffuse model leaves unexplained (a highlight: most; a lit crescent: little)
     crop_lum = np.zeros(usable.shape)
     crop_lum[usable] = lum
     labels, count = ndimage.label(usable & (crop_lum >= 0.5 * lum.max()), np.ones((3, 3)))
     blob, excess = 0, 0.0
     if count:
-        sizes = np.bincount(labels.ravel())[1:]
-        blob = int(sizes.max())
-        in_blob = (labels == 1 + int(np.argmax(sizes)))[usable]
+        sizes = np.bincount(labels.ravel(), minlength=count + 1)
+        peaks = np.unique(labels[usable & (crop_lum >= TIE_FRACTION * lum.max())])
+        spot = int(peaks[np.argmin(sizes[peaks])])
+        blob = int(sizes[spot])
+        in_blob = (labels == spot)[usable]
         excess = float(np.sum(lum[in_blob] - lambert[in_blob]) / max(np.sum(lum[in_blob]), 1e-12))
     return {"contrast": contrast, "residual": resid, "mean": mean, "blob_pixels": blob,
             "blob_fraction": blob / float(usable.sum()), "blob_excess": excess}
@@ -326,9 +330,10 @@ def _lambert_fit(normals: np.ndarray, lum: np.ndarray, samples: int = 1500) -> t
 
 
 def hough_circles(image: np.ndarray) -> list[tuple[float, float, float]]:
-    """Circle candidates ``(cx, cy, r)`` in pixels (pixel-centre convention): OpenCV's
-    gradient-orientation Hough transform first (few, well-shaped circles), then the
-    classic one (more, looser), near-duplicates merged, at most :data:`MAX_CANDIDATES`
+    """Circle candidates ``(cx, cy, r)`` in pixels (pixel-centre convention) from three
+    OpenCV Hough transforms (gradient-orientation: few, well-shaped circles; classic:
+    more, looser; classic with a finer blur and fewer votes: small circles), taken in
+    turns by each one's rank, near-duplicates merged, at most :data:`MAX_CANDIDATES`
     (the last :data:`SPOT_PROPOSALS` of them, when there are more, chosen by the
     brightest spot inside over the median)."""
     import cv2
@@ -345,10 +350,11 @@ def hough_circles(image: np.ndarray) -> list[tuple[float, float, float]]:
     # small spheres: a finer blur and fewer votes (a 10 px circle has few edge pixels)
     fine = cv2.HoughCircles(cv2.GaussianBlur(gray, (0, 0), 1.2), cv2.HOUGH_GRADIENT, dp=1,
                             minDist=rmin, param1=60, param2=14, minRadius=rmin, maxRadius=min(rmax, 4 * rmin + 20))
-    for circles in (alt, classic, fine):
-        if circles is None:
-            continue
-        for x, y, r in circles[0]:
+    # each proposer ranks its circles by votes: they take turns, so that the fine one's
+    # best small circles are not queued behind the classic one's hundred weaker ones
+    lists = [c[0] for c in (alt, classic, fine) if c is not None]
+    for rank in range(max((len(c) for c in lists), default=0)):
+        for x, y, r in (c[rank] for c in lists if rank < len(c)):
             # OpenCV's pixel (i, j) has its centre at (i, j); ours at (i + 0.5, j + 0.5)
             c = (float(x) + 0.5, float(y) + 0.5, float(r))
             if not any(math.hypot(c[0] - f[0], c[1] - f[1]) < 0.15 * f[2] and abs(c[2] - f[2]) < 0.15 * f[2]
@@ -376,8 +382,9 @@ def hough_circles(image: np.ndarray) -> list[tuple[float, float, float]]:
 def find_spheres(image: np.ndarray, camera: Camera) -> list[dict]:
     """Refined sphere candidates with their features: ``sphere``, ``edge_support``,
     ``contrast``, ``residual``, ``chrome`` and ``diffuse`` (bool), best supported first.
-    Of candidates of similar radius within half a radius of each other the best supported stays; so does
-    no circle lying inside a better supported one (a highlight or a reflection)."""
+    Of candidates of one kind and similar radius within half a radius of each other the
+    best supported stays (:func:`_merge_candidate`); so does no circle lying inside a better
+    supported one (a highlight or a reflection)."""
     smoothed = _edge_image(image)
     out: list[dict] = []
     refined: list[tuple] = []
@@ -416,14 +423,9 @@ def find_spheres(image: np.ndarray, camera: Camera) -> list[dict]:
                 continue
             circle = outline_circle(camera, sphere)
             refined.append(circle)
-            same = [c for c in out if math.hypot(circle[0] - c["circle"][0], circle[1] - c["circle"][1])
-                    < 0.5 * max(circle[2], c["circle"][2]) and 0.7 < circle[2] / c["circle"][2] < 1.4]
-            if any(c["edge_support"] >= support for c in same):
-                continue
-            out = [c for c in out if not any(c is d for d in same)]
             f = sphere_features(image, camera, sphere)
-            out.append({"sphere": sphere, "circle": circle, "edge_support": support, **f,
-                        "chrome": is_chrome(f), "diffuse": is_diffuse(f)})
+            out = _merge_candidate(out, {"sphere": sphere, "circle": circle, "edge_support": support, **f,
+                                         "chrome": is_chrome(f), "diffuse": is_diffuse(f)})
     out = [_outermost_outline(image, camera, c, smoothed) if c["chrome"] else c for c in out]
     for c in out:     # does its brightest spot look like a small light's highlight?
         c["highlight"] = highlight_likelihood(image, camera, c["sphere"]) if c["chrome"] else -10.0
@@ -436,6 +438,20 @@ def find_spheres(image: np.ndarray, camera: Camera) -> list[dict]:
         + c["circle"][2] < o["circle"][2] * 1.1 and o["edge_support"] >= c["edge_support"] - 0.02 for o in out)]
     out.sort(key=lambda c: -c["edge_support"])
     return out
+
+
+def _merge_candidate(out: list[dict], cand: dict) -> list[dict]:
+    """``out`` with ``cand`` added, unless a candidate of the same kind (chrome or not) of
+    similar radius (0.7-1.4 times) within half a radius is at least as well supported;
+    those it beats go. One of the other kind does not count: a chrome sphere's inner
+    reflection disc (the dim open top of a room), uniform and often the stronger circle,
+    fits a smooth shading and looks diffuse, and must not hide the sphere around it."""
+    cx, cy, r = cand["circle"]
+    same = [c for c in out if math.hypot(cx - c["circle"][0], cy - c["circle"][1]) < 0.5 * max(r, c["circle"][2])
+            and 0.7 < r / c["circle"][2] < 1.4 and c["chrome"] == cand["chrome"]]
+    if any(c["edge_support"] >= cand["edge_support"] for c in same):
+        return out
+    return [c for c in out if not any(c is d for d in same)] + [cand]
 
 
 def _outermost_outline(image: np.ndarray, camera: Camera, cand: dict, smoothed: np.ndarray) -> dict:
