@@ -41,8 +41,9 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-PSM = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "..", "shared", "data",
-                   "psm_spheres")
+from relight.net.photos import shared_data_dir  # noqa: E402
+
+PSM = os.path.join(shared_data_dir(), "psm_spheres")   # $RELIGHT_SHARED_DATA, else next to the checkout
 TARGETS = {"cycles png, circle given": (1.0, 5.0), "cycles png, circles given (+gray)": (1.0, 5.0),
            "cycles png, automatic": (1.5, 8.0),
            "psm_spheres, mask": (2.0, None)}
@@ -250,7 +251,8 @@ def main() -> None:
     ap.add_argument("--renderers", default="cycles,mitsuba")
     ap.add_argument("--kinds", default="png,exr", help="which files of the set: png (8-bit) and/or exr")
     ap.add_argument("--no-psm", action="store_true", help="skip shared/data/psm_spheres")
-    ap.add_argument("--psm", default=PSM, help="the psm_spheres folder (default: shared/data next to the checkout)")
+    ap.add_argument("--psm", default=PSM, help="the psm_spheres folder (default: $RELIGHT_SHARED_DATA/psm_spheres, else shared/data "
+                         "next to the checkout)")
     ap.add_argument("--no-auto", action="store_true", help="circles given only (automatic detection is slow)")
     ap.add_argument("--qa", default=None, help="write QA overlays to this folder")
     ap.add_argument("--floor", action="store_true",
