@@ -196,14 +196,16 @@ _OUTPUT_ENV = "RELIGHT_OUTPUT_OPTIONS"
 
 
 def name_outputs(options: dict) -> None:
-    """Record which command-line option gave each output path (``{"--out": path}``), so
+    """Record which command-line option gave each output path (``{"--out": path}``, or a
+    list of paths for a repeatable option), so
     that an error while writing one names the option the user typed, never an internal
     temporary (the command line calls this once with its parsed arguments)."""
     import json
     _OUTPUT_OPTIONS.clear()
     for option, given in options.items():
-        if isinstance(given, (str, os.PathLike)) and os.fspath(given):
-            _OUTPUT_OPTIONS[_real(given)] = (option, os.fspath(given))
+        for one in (given if isinstance(given, (list, tuple)) else [given]):   # a repeatable option: each
+            if isinstance(one, (str, os.PathLike)) and os.fspath(one):
+                _OUTPUT_OPTIONS[_real(one)] = (option, os.fspath(one))
     os.environ[_OUTPUT_ENV] = json.dumps(_OUTPUT_OPTIONS)   # worker processes name them alike
 
 
