@@ -40,7 +40,7 @@ __all__ = [
     "world_to_envmap", "mitsuba_envmap_to_world", "rotation_about",
     "pan_from_rel", "tangent_move", "rotation_z", "frame_z_to", "perpendicular_pair", "sensor_frame",
     "fold_over_zenith", "camera_to_pan_tilt",
-    "TARGET_FRAMES", "target_tilt_deg", "y_to_target", "target_to_y",
+    "TARGET_FRAMES", "check_target_frame", "target_tilt_deg", "y_to_target", "target_to_y",
 ]
 
 Y_SIZE = 7  # the paper's target vector: pan sin/cos, tilt sin/cos, r, g, b
@@ -357,7 +357,8 @@ def decode_y(y, tilt_c_deg, pan_c_deg=0.0):
 TARGET_FRAMES = ("world", "camera")
 
 
-def _check_target_frame(frame: str) -> None:
+def check_target_frame(frame: str) -> None:
+    """ValueError unless ``frame`` is one of :data:`TARGET_FRAMES`."""
     if frame not in TARGET_FRAMES:
         raise ValueError(f"target frame must be one of {', '.join(TARGET_FRAMES)}, got {frame!r}")
 
@@ -369,7 +370,7 @@ def target_tilt_deg(camera_tilt_deg, frame: str):
     >>> float(target_tilt_deg(30.0, "world")), target_tilt_deg([30.0, 45.0], "camera").tolist()
     (30.0, [0.0, 0.0])
     """
-    _check_target_frame(frame)
+    check_target_frame(frame)
     tilt = np.asarray(camera_tilt_deg, dtype=np.float64)
     return tilt if frame == "world" else np.zeros_like(tilt)
 
@@ -398,7 +399,7 @@ def y_to_target(y, camera_tilt_deg, frame: str) -> np.ndarray:
     >>> (np.round(y_to_target(y, 30.0, "camera"), 12) + 0.0).tolist()
     [0.0, 1.0, 0.0, 1.0, 1.0, 0.0, 0.0]
     """
-    _check_target_frame(frame)
+    check_target_frame(frame)
     y = np.asarray(y, dtype=np.float64)
     if frame == "world":
         return np.array(y, copy=True)
@@ -418,7 +419,7 @@ def target_to_y(target, camera_tilt_deg, frame: str) -> np.ndarray:
     >>> bool(np.allclose(target_to_y(y_to_target(y, 40.0, "camera"), 40.0, "camera"), y))
     True
     """
-    _check_target_frame(frame)
+    check_target_frame(frame)
     target = np.asarray(target, dtype=np.float64)
     if frame == "world":
         return np.array(target, copy=True)

@@ -141,8 +141,7 @@ class LightDataset(Dataset):
             raise ValueError(f"source must be one of {', '.join(SOURCES)}, got {source!r}")
         self.source = source         # "image": the 8-bit PNG; "exr": the linear EXR through ``augment``
         self.augment = augment       # a relight.net.augment.PipelineAugment (source "exr"), or None
-        if target_frame not in frames.TARGET_FRAMES:
-            raise ValueError(f"target_frame must be one of {', '.join(frames.TARGET_FRAMES)}, got {target_frame!r}")
+        frames.check_target_frame(target_frame)
         self.target_frame = target_frame
         self.split = split
         self.res, self.flip, self.seed, self.cache = res, flip, seed, cache

@@ -42,7 +42,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from relight.frames import TARGET_FRAMES
+from relight.frames import check_target_frame
 
 ARCH_NAME = "sid2-inception-small/v1"
 PAPER_ARCH_NAME = "sid2-inception-paper/v1"
@@ -103,9 +103,7 @@ class NetConfig:
         for name in ("kappa_head", "kappa_detach", "camera_head"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"NetConfig.{name} must be true or false, got {getattr(self, name)!r}")
-        if self.target_frame not in TARGET_FRAMES:
-            raise ValueError(f"NetConfig.target_frame must be one of {', '.join(TARGET_FRAMES)}, "
-                             f"got {self.target_frame!r}")
+        check_target_frame(self.target_frame)
 
     @classmethod
     def for_arch(cls, arch: str = "small", **kwargs) -> "NetConfig":

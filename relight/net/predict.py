@@ -124,8 +124,8 @@ def _predict_inputs(model, inputs: list[torch.Tensor], camera_tilt_deg, batch_si
         else:
             tilts, how = np.full(len(inputs), DEFAULT_CAMERA_TILT_DEG), "assumed"
     frame = target_frame_of(model)
-    pan, tilt, rgb = decode_outputs(y, tilts, frame)
     y = paper_y(y, tilts, frame)
+    pan, tilt, rgb = decode_outputs(y, tilts)
     extras = extra_fields(rgb, np.concatenate(kappas) if kappas else None)
     for i, grey in enumerate(achromatic or []):
         if grey:

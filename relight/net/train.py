@@ -161,9 +161,11 @@ class TrainConfig:
             raise TrainingError("--augment works on the linear EXRs: give --source exr")
         if self.image_key not in ("image", "image_masked"):
             raise TrainingError(f"image_key must be 'image' or 'image_masked', got {self.image_key!r}")
-        from relight.frames import TARGET_FRAMES
-        if self.target_frame not in TARGET_FRAMES:
-            raise TrainingError(f"target_frame must be one of {', '.join(TARGET_FRAMES)}, got {self.target_frame!r}")
+        from relight.frames import check_target_frame
+        try:
+            check_target_frame(self.target_frame)
+        except ValueError as exc:
+            raise TrainingError(str(exc)) from None
 
     def to_dict(self) -> dict:
         return asdict(self)
