@@ -392,3 +392,29 @@ def test_training_on_two_folders_joins_them(tiny, tmp_path, capsys):
     assert main(argv[:4] + [tiny] + argv[5:-1] + [str(tmp_path / "run2")]) == 2
     err = capsys.readouterr().err
     assert "twice" in err and len(err.strip().splitlines()) == 1 and not (tmp_path / "run2").exists()
+
+
+@pytest.mark.parametrize("n,size", [(10, 3), (7, 7), (5, 12)])
+def test_epoch_images_walk_every_image_once_per_pass(n, size):
+    from relight.net.train import _epoch_order
+    epochs = 3 * n      # enough epochs for several whole passes whatever the sizes
+    walk = [i for e in range(epochs) for i in _epoch_order(n, 4, e, size)]
+    assert all(len(_epoch_order(n, 4, e, size)) == size for e in range(epochs))
+    for start in range(0, len(walk) - n + 1, n):    # each pass is a permutation of all images
+        assert sorted(walk[start:start + n]) == list(range(n))
+    assert walk[:n] != walk[n:2 * n]                # ... a new one each pass
+    assert _epoch_order(n, 4, 5, size) == _epoch_order(n, 4, 5, size)   # (seed, epoch) decide it
+    assert _epoch_order(n, 4, 0, size) != _epoch_order(n, 5, 0, size)
+
+
+def test_epoch_images_sets_the_images_per_epoch_and_is_kept_on_resume(tiny, tmp_path):
+    cfg = TrainConfig(data_dir=tiny, epochs=2, batch_size=4, res=RES, width=8, epoch_images=3)
+    row = train(cfg, tmp_path / "short", progress=False)
+    with open(tmp_path / "short" / "log.csv") as f:
+        assert [int(r["n_train"]) for r in csv.DictReader(f)] == [3, 3]
+    assert row["epoch"] == 2
+    with pytest.raises(TrainingError, match="epoch_images"):
+        train(dataclasses.replace(cfg, epochs=3, epoch_images=5), tmp_path / "short", resume=True,
+              progress=False)
+    with pytest.raises(TrainingError, match="epoch_images"):
+        TrainConfig(data_dir=tiny, epoch_images=0)

@@ -42,6 +42,10 @@ def add_commands(sub) -> None:
     t.add_argument("--kappa-into-features", action="store_true",
                    help="let the kappa NLL train the shared encoder too (default: the kappa head reads "
                         "the embedding detached, so the paper's terms alone train the encoder)")
+    t.add_argument("--epoch-images", type=at.count, default=None, metavar="N",
+                   help="images per epoch (default: the whole train split); on a large set a shorter "
+                        "epoch validates, checkpoints and steps the scheduler more often, and every "
+                        "image is still seen once before any twice")
     t.add_argument("--max-minutes", type=at.minutes, default=None,
                    help="stop after the epoch that passes this many minutes (resume later)")
     t.add_argument("--resume", action="store_true",
@@ -128,7 +132,7 @@ def cmd_train(args) -> int:
                       max_minutes=args.max_minutes, width=args.width, arch=args.arch,
                       kappa_detach=not args.kappa_into_features,
                       camera_weight=float(args.camera_weight), source=args.source, augment=args.augment,
-                      target_frame=args.target_frame,
+                      target_frame=args.target_frame, epoch_images=args.epoch_images,
                       loss_weights=dataclasses.replace(args.loss_weights, kappa=args.kappa_weight))
     row = train(cfg, args.out, resume=args.resume, progress=not args.quiet)
     if row:

@@ -104,6 +104,10 @@ class TrainConfig:
         max_minutes: stop after the first epoch that ends past this wall time
             (minutes from the start of this invocation; None: no limit). A later
             ``resume`` continues from there.
+        epoch_images: images per epoch (None: the whole training split). On a large set
+            a shorter epoch validates, checkpoints and steps the scheduler more often; the
+            epochs walk one seeded permutation after another, so every image is seen
+            once before any is seen twice (:func:`_epoch_order`).
     """
     data_dir: str | tuple[str, ...]
     epochs: int = 10
@@ -129,6 +133,7 @@ class TrainConfig:
     source: str = "image"
     augment: str = "none"
     target_frame: str = "world"
+    epoch_images: int | None = None
 
     def __post_init__(self):
         folders = tuple(dataset_folders(self.data_dir))   # one folder stays a plain string (older runs)
@@ -137,6 +142,8 @@ class TrainConfig:
             v = getattr(self, name)
             if not isinstance(v, int) or v < 1:
                 raise TrainingError(f"{name} must be a positive integer, got {v!r}")
+        if self.epoch_images is not None and not (isinstance(self.epoch_images, int) and self.epoch_images >= 1):
+            raise TrainingError(f"epoch_images must be a positive integer, got {self.epoch_images!r}")
         if self.workers < 0 or self.plateau_patience < 0:
             raise TrainingError("workers and plateau_patience must be >= 0")
         if not (isinstance(self.seed, int) and 0 <= self.seed < 2 ** 32):
@@ -173,7 +180,7 @@ class TrainConfig:
 
 def _check_resume_compatible(saved: dict, cfg: TrainConfig) -> None:
     for key in ("res", "batch_size", "seed", "width", "flip", "arch", "kappa_detach", "init", "image_key",
-                "camera_weight", "target_frame"):
+                "camera_weight", "target_frame", "epoch_images"):
         if key not in saved and key not in LATER_DEFAULTS:
             continue
         was = saved.get(key, LATER_DEFAULTS.get(key))
@@ -182,7 +189,8 @@ def _check_resume_compatible(saved: dict, cfg: TrainConfig) -> None:
 
 
 # Settings added after the first runs: a settings.json without the key means this value.
-LATER_DEFAULTS = {"camera_weight": 0.0, "source": "image", "augment": "none", "target_frame": "world"}
+LATER_DEFAULTS = {"camera_weight": 0.0, "source": "image", "augment": "none", "target_frame": "world",
+                  "epoch_images": None}
 
 
 def net_config(cfg: TrainConfig, saved: dict | None = None) -> NetConfig:
@@ -228,9 +236,23 @@ def with_camera_head(model: LightNet) -> LightNet:
     return with_heads(model, camera_head=True)
 
 
-def _epoch_order(n: int, seed: int, epoch: int) -> list[int]:
-    g = torch.Generator().manual_seed(seed * 1_000_003 + epoch)
+def _permutation(n: int, seed: int, index: int) -> list[int]:
+    g = torch.Generator().manual_seed(seed * 1_000_003 + index)
     return torch.randperm(n, generator=g).tolist()
+
+
+def _epoch_order(n: int, seed: int, epoch: int, epoch_images: int | None = None) -> list[int]:
+    """The training images of ``epoch``, in order: a permutation of all ``n`` seeded by
+    (seed, epoch), or with ``epoch_images`` the epoch's slice of the endless sequence of
+    permutations seeded by (seed, 0), (seed, 1)... (each image once per pass)."""
+    if epoch_images is None:
+        return _permutation(n, seed, epoch)
+    start, out = epoch * epoch_images, []
+    npass, offset = divmod(start, n)
+    while len(out) < epoch_images:
+        out += _permutation(n, seed, npass)[offset:offset + epoch_images - len(out)]
+        npass, offset = npass + 1, 0
+    return out
 
 
 def _save_checkpoint(path: str, state: dict) -> None:
@@ -469,7 +491,9 @@ def _train_epoch(run: _Run, cfg: TrainConfig, epoch: int, progress: bool, ddp) -
     model, train_set = run.model, run.train_set
     train_set.epoch = epoch
     if ddp is None:
-        sampler = _epoch_order(len(train_set), cfg.seed, epoch)
+        sampler = _epoch_order(len(train_set), cfg.seed, epoch, cfg.epoch_images)
+    elif cfg.epoch_images is not None:   # every rank draws the same epoch, each takes its share
+        sampler = _epoch_order(len(train_set), cfg.seed, epoch, cfg.epoch_images)[ddp[0]::ddp[1]]
     else:
         from torch.utils.data.distributed import DistributedSampler
         sampler = DistributedSampler(train_set, num_replicas=ddp[1], rank=ddp[0], shuffle=True,
