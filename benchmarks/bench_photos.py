@@ -42,7 +42,19 @@ def _row(label: str, s: dict, keys=("direction_deg",)) -> str:
     cov = s.get("cone90_coverage", float("nan"))
     parts.append("     -" if cov != cov else f"{100 * cov:5.1f}%")
     parts.append(f"{100 * s.get('ood_share', 0.0):5.1f}%")
+    if "follow_x_r" in s:
+        parts.append(f"{s['follow_x_r']:5.2f} {s['follow_y_r']:5.2f}")
     return "  ".join(parts)
+
+
+def _label(model_path: str) -> str:
+    """A model's name in the tables: its file name, or its run folder's for a run's
+    best/last weights (several runs' ``best.safetensors`` side by side)."""
+    path = str(model_path).rstrip(os.sep)
+    base = os.path.basename(path)
+    if base in ("best.safetensors", "last.safetensors"):
+        return f"{os.path.basename(os.path.dirname(os.path.abspath(path)))}/{base}"
+    return base
 
 
 def _constant_guess(truth: np.ndarray) -> dict:
@@ -131,6 +143,7 @@ def main(argv=None) -> int:
             print(f"\n{label}")
             if kind == "photo":
                 _, truth = photos.read_photo_set(folder, names)
+                print(f"  {'':<42}  {'n':>4}  direction       cone90  ood    follows x y")
                 print(_row("  constant guess: light at the camera", _constant_guess(truth)))
             else:
                 head_keys = ("direction_deg", "world_direction_deg", "colour_deg")
@@ -138,13 +151,15 @@ def main(argv=None) -> int:
             for name, model in models:
                 if kind == "photo":
                     s = photos.summary(photos.score_photo_set(model, folder, names, args.camera_tilt))
-                    print(_row(f"  {os.path.basename(str(name))}", s))
+                    print(_row(f"  {_label(name)}", s))
                 else:
                     s = photos.summary(photos.score_dataset(model, folder, limit=args.n))
-                    print(_row(f"  {os.path.basename(str(name))}", s, head_keys))
+                    print(_row(f"  {_label(name)}", s, head_keys))
                 results[f"{label} | {name}"] = s
         print("\ncolumns: median and mean degrees; cone90 = share of 90% cones holding the truth; "
-              "ood = share flagged out-of-distribution")
+              "ood = share flagged out-of-distribution; on photographs, follows: the correlation of "
+              "predicted with true light right (x) and up (y) over the set (near 1: the answer tracks "
+              "the light; near 0: a well-placed constant)")
         if args.json:
             from relight.fileio import write_json
             write_json(args.json, results)

@@ -434,3 +434,20 @@ def test_shared_data_dir_explicit_then_environment_then_next_to_the_checkout(mon
     monkeypatch.setenv(SHARED_DATA_ENV, str(tmp_path))
     assert shared_data_dir() == str(tmp_path)
     assert shared_data_dir("/elsewhere") == "/elsewhere"
+
+
+def test_follows_light_tells_a_reading_from_a_well_placed_constant():
+    from relight.net.photos import follows_light
+    rng = np.random.default_rng(3)
+    truth = rng.normal(size=(40, 3)) * [0.3, 0.3, 0.1] + [0, 0, 1]
+    truth /= np.linalg.norm(truth, axis=1, keepdims=True)
+    noisy = truth + rng.normal(scale=0.03, size=truth.shape)
+    rx, ry = follows_light(noisy, truth)
+    assert rx > 0.9 and ry > 0.9                               # tracks the light
+    constant = np.tile(truth.mean(0), (40, 1))                 # the set's mean light: low error, no reading
+    assert all(np.isnan(follows_light(constant, truth)))
+    shuffled = truth[rng.permutation(40)]                      # right spread, wrong images
+    assert all(abs(r) < 0.5 for r in follows_light(shuffled, truth))
+    mirrored = truth * [-1, 1, 1]                              # left and right swapped
+    rx, ry = follows_light(mirrored, truth)
+    assert rx < -0.9 and ry > 0.9

@@ -24,7 +24,8 @@ import numpy as np
 
 from relight import frames, metrics
 
-__all__ = ["SHARED_DATA_ENV", "shared_data_dir", "read_photo_set", "score_photo_set", "score_dataset", "summary"]
+__all__ = ["SHARED_DATA_ENV", "shared_data_dir", "read_photo_set", "score_photo_set", "score_dataset", "summary",
+           "follows_light"]
 
 SHARED_DATA_ENV = "RELIGHT_SHARED_DATA"
 
@@ -82,7 +83,7 @@ def score_photo_set(model, folder: str, names: tuple[str, ...] | None = None,
     """Predict every image of a photo set (:func:`read_photo_set`) and score it against the
     true light, camera frame. ``camera_tilt_deg``: None = the model's own (camera head; else
     the paper's 45). Returns per-image arrays ``id``, ``direction_deg``, ``covered``, ``ood``,
-    ``camera_tilt_deg``."""
+    ``camera_tilt_deg``, ``to_light_camera`` and ``true_to_light_camera``."""
     from relight.net.predict import predict_files
     files, truth = read_photo_set(folder, names)
     preds = predict_files(model, files, camera_tilt_deg)
@@ -90,7 +91,25 @@ def score_photo_set(model, folder: str, names: tuple[str, ...] | None = None,
     err = metrics.angle_deg(pred, truth)
     return {"id": [p["id"] for p in preds], "direction_deg": err, "covered": _cone_covers(preds, err),
             "ood": np.array([bool(p.get("ood", False)) for p in preds]),
-            "camera_tilt_deg": np.array([p["camera_tilt_deg"] for p in preds])}
+            "camera_tilt_deg": np.array([p["camera_tilt_deg"] for p in preds]),
+            "to_light_camera": pred, "true_to_light_camera": np.asarray(truth, np.float64).reshape(-1, 3)}
+
+
+def follows_light(pred, truth) -> tuple[float, float]:
+    """Whether predictions follow the light across a set, not only sit near its average:
+    Pearson's correlation of the predicted with the true right (x) and up (y) components of
+    the camera-frame directions ``(N, 3)``. A constant answer scores NaN (no spread), one that
+    tracks the light near 1; a median error alone cannot tell a well-placed constant from
+    a reading of the image."""
+    pred, truth = np.asarray(pred, np.float64).reshape(-1, 3), np.asarray(truth, np.float64).reshape(-1, 3)
+    out = []
+    for axis in (0, 1):
+        p, t = pred[:, axis], truth[:, axis]
+        if len(p) < 3 or np.std(p) < 1e-9 or np.std(t) < 1e-9:
+            out.append(float("nan"))
+        else:
+            out.append(float(np.corrcoef(p, t)[0, 1]))
+    return out[0], out[1]
 
 
 def score_dataset(model, data_dir: str, split: str = "all", limit: int | None = None) -> dict:
@@ -127,7 +146,9 @@ def score_dataset(model, data_dir: str, split: str = "all", limit: int | None = 
 
 def summary(scores: dict) -> dict:
     """Median and mean of each error, cone coverage (share of images whose 90% cone holds the
-    truth, NaN for a model without cones) and the share flagged out-of-distribution."""
+    truth, NaN for a model without cones), the share flagged out-of-distribution and, for a
+    photo set, how well the predictions follow the light (:func:`follows_light`:
+    ``follow_x_r``, ``follow_y_r``)."""
     out = {"n": int(len(scores["direction_deg"]))}
     for key in ("direction_deg", "world_direction_deg", "colour_deg", "camera_tilt_error_deg"):
         if key in scores and len(scores[key]):
@@ -136,4 +157,6 @@ def summary(scores: dict) -> dict:
     covered = np.asarray(scores["covered"], dtype=bool)
     out["cone90_coverage"] = float(covered.mean()) if covered.size else float("nan")
     out["ood_share"] = float(np.mean(scores["ood"])) if len(scores["ood"]) else 0.0
+    if "true_to_light_camera" in scores:
+        out["follow_x_r"], out["follow_y_r"] = follows_light(scores["to_light_camera"], scores["true_to_light_camera"])
     return out
