@@ -25,7 +25,7 @@ __all__ = [
     "read_probe_image", "load_mask", "edge_points", "refine_sphere", "sphere_features", "hough_circles",
     "find_spheres", "is_chrome", "is_diffuse", "pick_sphere",
     "outline_fit_px", "constrained_refinement", "GROW_RADII", "GROW_MIN_SUPPORT_RATIO", "GROW_ROUNDS",
-    "PICK_HIGHLIGHT_WEIGHT", "PICK_RADIUS_WEIGHT",
+    "PICK_HIGHLIGHT_WEIGHT", "PICK_RADIUS_WEIGHT", "CHROME_INSIDE_PX", "outer_rim_fit",
 ]
 
 import math
@@ -61,6 +61,8 @@ SPOT_PROPOSALS = 20            # ... of which the last 20: the rest's circles wi
 GROW_RADII = (1.2, 1.4)         # a chrome candidate: larger concentric outlines tried ...
 GROW_MIN_SUPPORT_RATIO = 0.8   # ... and kept with at least 80% of its edge support,
 GROW_ROUNDS = 3                # ... again from the larger one, up to three times
+CHROME_INSIDE_PX = 0.5         # a chrome outline's edge points further inside than this are reflections
+                               # (about 1.5 robust sigmas of the edge points' scatter on a true rim, 0.3 px)
 PICK_HIGHLIGHT_WEIGHT = 0.1    # choosing the chrome sphere: per unit of highlight likelihood (strikes) ...
 PICK_RADIUS_WEIGHT = 0.1       # ... and per unit of log radius (a chrome sphere's reflections are smaller circles)
 RADIUS_HYPOTHESES = (1.0, 0.85, 1.15)  # a Hough circle's radius is often off on a chrome sphere's faint rim
@@ -509,7 +511,61 @@ def _outermost_outline(image: np.ndarray, camera: Camera, cand: dict, smoothed: 
         if grown is best:
             break
         best = grown
+    sphere = outer_rim_fit(smoothed, camera, best["sphere"])
+    if sphere is not best["sphere"]:
+        f = sphere_features(image, camera, sphere)
+        if is_chrome(f):
+            best = {**best, **f, "sphere": sphere, "circle": outline_circle(camera, sphere), "chrome": True,
+                    "diffuse": is_diffuse(f)}
     return best
+
+
+def outer_rim_fit(smoothed: np.ndarray, camera: Camera, sphere: Sphere) -> Sphere:
+    """A chrome sphere's outline fitted to its outermost edges: where its rim mirrors what
+    lies right beside it (the floor it stands on and its own contact shadow, below it)
+    the rim shows no edge, and the strongest edge near it is a reflection inside (the
+    floor's far edge, a lit patch), which pulls a symmetric fit in and up. The outline is
+    first fitted to the edge points on or outside it; then edge points more than
+    :data:`CHROME_INSIDE_PX` inside it are left out, those outside by the usual robust
+    rule, and the outline refitted until the set of points settles (twice, the second
+    time searching a narrower band around the new outline). Returns ``sphere`` itself
+    when fewer than 30% of the radial lines would remain, or the outline would move or
+    change its radius by more than 15% of the radius (a different circle)."""
+    cx0, cy0, r0 = outline_circle(camera, sphere)
+    fitted = sphere
+    for band in (2.0, 1.5):
+        x, y, _ = edge_points(smoothed, camera, fitted, band)
+        if x.size < 0.3 * EDGE_ANGLES:
+            return sphere
+        keep = np.ones(x.size, bool)
+        dist = _outline_distance(camera, fitted, x, y)
+        if band == 2.0 and (dist >= 0).sum() >= 0.3 * EDGE_ANGLES:
+            # start from the points on or outside the outline: a symmetric fit that the inner
+            # edges pulled in and up leaves them within a fraction of a pixel of it, the rim's
+            # own points (at the sides) outside
+            keep = dist >= 0
+            try:
+                fitted = fit_sphere(camera, x[keep], y[keep], robust=False)
+            except ProbeError:
+                return sphere
+        for _ in range(10):
+            dist = _outline_distance(camera, fitted, x, y)
+            kept = dist[keep]
+            mad = 1.4826 * np.median(np.abs(kept - np.median(kept)))
+            new = (dist >= -CHROME_INSIDE_PX) & (dist <= max(REJECT_MIN_PX, REJECT_SIGMAS * mad))
+            if new.sum() < 0.3 * EDGE_ANGLES:
+                return sphere
+            if np.array_equal(new, keep):
+                break
+            keep = new
+            try:
+                fitted = fit_sphere(camera, x[keep], y[keep], robust=False)
+            except ProbeError:
+                return sphere
+    cx, cy, r = outline_circle(camera, fitted)
+    if math.hypot(cx - cx0, cy - cy0) > 0.15 * r0 or abs(r - r0) > 0.15 * r0:
+        return sphere
+    return fitted
 
 
 def _grow_once(image: np.ndarray, camera: Camera, cand: dict, smoothed: np.ndarray) -> dict:
