@@ -3,7 +3,7 @@ image edges, and automatic detection of the chrome and the diffuse sphere.
 
 Outline refinement: along radial lines through the sphere's outline guess, the strongest
 colour edge (the norm of the RGB derivative of the linear image, clipped and smoothed by
-:data:`EDGE_SIGMA_PX`) is located to a fraction of a pixel (parabola through the peak);
+:func:`edge_sigma_px`) is located to a fraction of a pixel (parabola through the peak);
 the sphere is fitted to those points with a robust loss, and the search narrows around the
 fitted outline. A chrome sphere's rim reflects what lies beside it, so parts of its outline
 are faint; the robust fit and the strength threshold leave those out.
@@ -18,14 +18,14 @@ hard terminator).
 from __future__ import annotations
 
 __all__ = [
-    "EDGE_SIGMA_PX", "EDGE_ANGLES", "EDGE_MIN_FRACTION", "REJECT_ROUNDS", "REJECT_SIGMAS", "REJECT_MIN_PX",
+    "EDGE_SIGMA_PX", "EDGE_SIGMA_MAX_PX", "EDGE_NOISE_LEFT", "edge_sigma_px", "image_noise", "EDGE_ANGLES", "EDGE_MIN_FRACTION", "REJECT_ROUNDS", "REJECT_SIGMAS", "REJECT_MIN_PX",
     "EDGE_INLIER_PX", "SUPPORT_BAND_FRACTION", "MIN_EDGE_SUPPORT", "MIN_RADIUS_FRACTION",
     "MAX_RADIUS_FRACTION", "MAX_CANDIDATES", "SPOT_PROPOSALS", "CHROME_MIN_CONTRAST",
     "CHROME_MAX_BLOB_FRACTION", "CHROME_MIN_EXCESS", "DIFFUSE_MAX_RESIDUAL", "TRIM_FRACTION",
     "read_probe_image", "load_mask", "edge_points", "refine_sphere", "sphere_features", "hough_circles",
     "find_spheres", "is_chrome", "is_diffuse", "pick_sphere",
     "outline_fit_px", "constrained_refinement", "GROW_RADII", "GROW_MIN_SUPPORT_RATIO", "GROW_ROUNDS",
-    "PICK_HIGHLIGHT_WEIGHT", "PICK_RADIUS_WEIGHT",
+    "PICK_HIGHLIGHT_WEIGHT", "PICK_RADIUS_WEIGHT", "CHROME_INSIDE_PX", "outer_rim_fit",
 ]
 
 import math
@@ -38,7 +38,12 @@ from relight.colour import srgb_decode, srgb_encode
 from relight.probe.geometry import (TIE_FRACTION, Camera, ProbeError, Sphere, fit_sphere, highlight_likelihood,
                                     outline_circle, outline_polygon, sphere_from_circle, sphere_pixels)
 
-EDGE_SIGMA_PX = 0.7
+EDGE_SIGMA_PX = 0.5            # edge smoothing: at least half a pixel (a sampled Gaussian narrower than that
+                               # collapses onto its centre pixel) ...
+EDGE_SIGMA_MAX_PX = 0.7        # ... at most 0.7 px (wider merges a mirror's rim with the reflections its last
+                               # pixel compresses: the found outline shrinks) ...
+EDGE_NOISE_LEFT = 0.001        # ... and in between as much as leaves this noise (in the exposed linear image):
+                               # the rms rounding error of an 8-bit sRGB code at mid-grey (0.18 linear: 0.00095)
 EDGE_ANGLES = 360
 EDGE_MIN_FRACTION = 0.3        # an edge weaker than 30% of the median edge strength is dropped
 REJECT_ROUNDS = 3               # outline fit: drop points beyond REJECT_SIGMAS robust sigmas
@@ -56,6 +61,8 @@ SPOT_PROPOSALS = 20            # ... of which the last 20: the rest's circles wi
 GROW_RADII = (1.2, 1.4)         # a chrome candidate: larger concentric outlines tried ...
 GROW_MIN_SUPPORT_RATIO = 0.8   # ... and kept with at least 80% of its edge support,
 GROW_ROUNDS = 3                # ... again from the larger one, up to three times
+CHROME_INSIDE_PX = 0.5         # a chrome outline's edge points further inside than this are reflections
+                               # (about 1.5 robust sigmas of the edge points' scatter on a true rim, 0.3 px)
 PICK_HIGHLIGHT_WEIGHT = 0.1    # choosing the chrome sphere: per unit of highlight likelihood (strikes) ...
 PICK_RADIUS_WEIGHT = 0.1       # ... and per unit of log radius (a chrome sphere's reflections are smaller circles)
 RADIUS_HYPOTHESES = (1.0, 0.85, 1.15)  # a Hough circle's radius is often off on a chrome sphere's faint rim
@@ -105,10 +112,44 @@ def _encoded(image: np.ndarray) -> np.ndarray:
 def _edge_image(image: np.ndarray) -> np.ndarray:
     """The image in which outlines are located: linear (a blur moves no edge there, while
     the sRGB curve would push each edge toward its dark side), exposed by
-    :func:`_exposure`, clipped, smoothed."""
+    :func:`_exposure`, clipped, smoothed by :func:`edge_sigma_px` of its own noise."""
     lin = np.asarray(image, np.float64)[..., :3]
     lin = np.clip(lin * _exposure(lin), 0.0, 1.0)
-    return ndimage.gaussian_filter(lin, (EDGE_SIGMA_PX, EDGE_SIGMA_PX, 0))
+    sigma = edge_sigma_px(lin)
+    return ndimage.gaussian_filter(lin, (sigma, sigma, 0))
+
+
+def image_noise(lin: np.ndarray) -> float:
+    """Per-pixel noise (standard deviation) of an exposed, clipped linear ``(H, W, 3)``
+    image: the mean absolute response to the 3x3 Laplacian-difference mask
+    ``[[1,-2,1],[-2,4,-2],[1,-2,1]]`` (which cancels any locally linear shading; white
+    noise of std s gives 6 s sqrt(2/pi) on average), over unclipped pixels, leaving out
+    the largest 10% (edges and texture; the mean of the rest of white noise's responses
+    is 6 s sqrt(2/pi) (1 - exp(-z^2/2)) / 0.9, z = 1.645 its 90th percentile), averaged
+    over the channels."""
+    mask = np.array([[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]])
+    z90 = 1.6448536269514722
+    per_std = 6.0 * math.sqrt(2.0 / math.pi) * (1.0 - math.exp(-0.5 * z90 * z90)) / 0.9
+    lin = np.asarray(lin, np.float64)
+    out = []
+    for c in range(lin.shape[2]):
+        v = lin[..., c]
+        resp = np.abs(ndimage.convolve(v, mask, mode="nearest"))[1:-1, 1:-1]
+        free = (v[1:-1, 1:-1] > 0.0) & (v[1:-1, 1:-1] < 1.0)
+        a = np.sort(resp[free])[:int(0.9 * free.sum())]
+        out.append(float(a.mean()) / per_std if a.size else 0.0)
+    return float(np.mean(out)) if out else 0.0
+
+
+def edge_sigma_px(lin: np.ndarray) -> float:
+    """The edge smoothing for an exposed, clipped linear image: the Gaussian that leaves
+    :data:`EDGE_NOISE_LEFT` of its noise (:func:`image_noise`; white noise of std s comes
+    out of a 2-D Gaussian of sigma p pixels as s / (2 sqrt(pi) p)), within
+    :data:`EDGE_SIGMA_PX` to :data:`EDGE_SIGMA_MAX_PX`. A clean render wants the least (its
+    edges are exact and a mirror's rim stays apart from the reflections inside it), a
+    noisy or coarsely quantized photograph more."""
+    need = image_noise(lin) / (2.0 * math.sqrt(math.pi) * EDGE_NOISE_LEFT)
+    return float(np.clip(need, EDGE_SIGMA_PX, EDGE_SIGMA_MAX_PX))
 
 
 def _exposure(image: np.ndarray) -> float:
@@ -134,7 +175,7 @@ def edge_points(smoothed: np.ndarray, camera: Camera, guess: Sphere, band_px: fl
                 angles: int = EDGE_ANGLES, prior: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Sub-pixel outline points (x, y) and their edge strengths along ``angles`` radial
     lines within ``band_px`` of the guessed outline (``smoothed``: the linear RGB image,
-    clipped and smoothed by :data:`EDGE_SIGMA_PX`)."""
+    exposed, clipped and smoothed, :func:`_edge_image`)."""
     theta = np.linspace(-np.pi, np.pi, angles, endpoint=False)
     cx, cy, r_theta = _polar_outline(camera, guess, theta)
     step = 0.25
@@ -470,7 +511,61 @@ def _outermost_outline(image: np.ndarray, camera: Camera, cand: dict, smoothed: 
         if grown is best:
             break
         best = grown
+    sphere = outer_rim_fit(smoothed, camera, best["sphere"])
+    if sphere is not best["sphere"]:
+        f = sphere_features(image, camera, sphere)
+        if is_chrome(f):
+            best = {**best, **f, "sphere": sphere, "circle": outline_circle(camera, sphere), "chrome": True,
+                    "diffuse": is_diffuse(f)}
     return best
+
+
+def outer_rim_fit(smoothed: np.ndarray, camera: Camera, sphere: Sphere) -> Sphere:
+    """A chrome sphere's outline fitted to its outermost edges: where its rim mirrors what
+    lies right beside it (the floor it stands on and its own contact shadow, below it)
+    the rim shows no edge, and the strongest edge near it is a reflection inside (the
+    floor's far edge, a lit patch), which pulls a symmetric fit in and up. The outline is
+    first fitted to the edge points on or outside it; then edge points more than
+    :data:`CHROME_INSIDE_PX` inside it are left out, those outside by the usual robust
+    rule, and the outline refitted until the set of points settles (twice, the second
+    time searching a narrower band around the new outline). Returns ``sphere`` itself
+    when fewer than 30% of the radial lines would remain, or the outline would move or
+    change its radius by more than 15% of the radius (a different circle)."""
+    cx0, cy0, r0 = outline_circle(camera, sphere)
+    fitted = sphere
+    for band in (2.0, 1.5):
+        x, y, _ = edge_points(smoothed, camera, fitted, band)
+        if x.size < 0.3 * EDGE_ANGLES:
+            return sphere
+        keep = np.ones(x.size, bool)
+        dist = _outline_distance(camera, fitted, x, y)
+        if band == 2.0 and (dist >= 0).sum() >= 0.3 * EDGE_ANGLES:
+            # start from the points on or outside the outline: a symmetric fit that the inner
+            # edges pulled in and up leaves them within a fraction of a pixel of it, the rim's
+            # own points (at the sides) outside
+            keep = dist >= 0
+            try:
+                fitted = fit_sphere(camera, x[keep], y[keep], robust=False)
+            except ProbeError:
+                return sphere
+        for _ in range(10):
+            dist = _outline_distance(camera, fitted, x, y)
+            kept = dist[keep]
+            mad = 1.4826 * np.median(np.abs(kept - np.median(kept)))
+            new = (dist >= -CHROME_INSIDE_PX) & (dist <= max(REJECT_MIN_PX, REJECT_SIGMAS * mad))
+            if new.sum() < 0.3 * EDGE_ANGLES:
+                return sphere
+            if np.array_equal(new, keep):
+                break
+            keep = new
+            try:
+                fitted = fit_sphere(camera, x[keep], y[keep], robust=False)
+            except ProbeError:
+                return sphere
+    cx, cy, r = outline_circle(camera, fitted)
+    if math.hypot(cx - cx0, cy - cy0) > 0.15 * r0 or abs(r - r0) > 0.15 * r0:
+        return sphere
+    return fitted
 
 
 def _grow_once(image: np.ndarray, camera: Camera, cand: dict, smoothed: np.ndarray) -> dict:
