@@ -44,6 +44,7 @@ def _row(label: str, s: dict, keys=("direction_deg",)) -> str:
     parts.append(f"{100 * s.get('ood_share', 0.0):5.1f}%")
     if "follow_x_r" in s:
         parts.append(f"{s['follow_x_r']:5.2f} {s['follow_y_r']:5.2f}")
+        parts.append(f"{s['image_angle_deg_median']:7.1f}  {s['slant_error_deg_median']:6.1f} {s['slant_bias_deg']:+6.1f}")
     return "  ".join(parts)
 
 
@@ -143,7 +144,8 @@ def main(argv=None) -> int:
             print(f"\n{label}")
             if kind == "photo":
                 _, truth = photos.read_photo_set(folder, names)
-                print(f"  {'':<42}  {'n':>4}  direction       cone90  ood    follows x y")
+                print(f"  {'':<42}  {'n':>4}  direction       cone90  ood    follows x y"
+                      "  in-image  slant |err| bias")
                 print(_row("  constant guess: light at the camera", _constant_guess(truth)))
             else:
                 head_keys = ("direction_deg", "world_direction_deg", "colour_deg")
@@ -159,7 +161,10 @@ def main(argv=None) -> int:
         print("\ncolumns: median and mean degrees; cone90 = share of 90% cones holding the truth; "
               "ood = share flagged out-of-distribution; on photographs, follows: the correlation of "
               "predicted with true light right (x) and up (y) over the set (near 1: the answer tracks "
-              "the light; near 0: a well-placed constant)")
+              "the light; near 0: a well-placed constant); in-image: median error of the light's "
+              "direction in the image plane, which an object's shading determines; slant: median "
+              "absolute and signed error of its angle from the view axis, which shading leaves to "
+              "shadows, highlights and priors (the bas-relief ambiguity; relight.net.photos.shading_split)")
         if args.json:
             from relight.fileio import write_json
             write_json(args.json, results)

@@ -451,3 +451,37 @@ def test_follows_light_tells_a_reading_from_a_well_placed_constant():
     mirrored = truth * [-1, 1, 1]                              # left and right swapped
     rx, ry = follows_light(mirrored, truth)
     assert rx < -0.9 and ry > 0.9
+
+
+def test_shading_split_separates_the_bas_relief_slant_from_the_image_direction():
+    from relight import metrics
+    from relight.net.photos import shading_split, summary
+    rng = np.random.default_rng(5)
+    truth = rng.normal(size=(30, 3)) * [0.4, 0.4, 0.2] + [0, 0, 1]
+    truth /= np.linalg.norm(truth, axis=1, keepdims=True)
+    slant = np.degrees(np.arccos(truth[:, 2]))
+    # the bas-relief light (x, y, z / lambda) of a deepened object: same in-image direction, larger slant
+    relief = truth * [1, 1, 0.3]
+    relief /= np.linalg.norm(relief, axis=1, keepdims=True)
+    split = shading_split(relief, truth)
+    np.testing.assert_allclose(split["image_angle_deg"], 0, atol=1e-9)
+    expected = np.degrees(np.arctan2(np.hypot(truth[:, 0], truth[:, 1]), 0.3 * truth[:, 2])) - slant
+    np.testing.assert_allclose(split["slant_error_deg"], expected, atol=1e-9)
+    assert np.all(split["slant_error_deg"] > 0)
+    # a turn about the view axis by 25 degrees: in-image error 25, slant unchanged, total error below 25
+    c, s = np.cos(np.radians(25)), np.sin(np.radians(25))
+    turned = truth @ np.array([[c, s, 0], [-s, c, 0], [0, 0, 1]])
+    split = shading_split(turned, truth)
+    np.testing.assert_allclose(split["image_angle_deg"], 25, atol=1e-9)
+    np.testing.assert_allclose(split["slant_error_deg"], 0, atol=1e-9)
+    assert np.all(metrics.angle_deg(turned, truth) < 25)
+    # across -180/180, and a light on the view axis has no in-image direction
+    a = np.array([[np.cos(np.radians(175)), np.sin(np.radians(175)), 1.0], [0, 0, 1.0]])
+    b = np.array([[np.cos(np.radians(-175)), np.sin(np.radians(-175)), 1.0], [1.0, 0, 1.0]])
+    split = shading_split(a, b)
+    assert split["image_angle_deg"][0] == pytest.approx(10)
+    assert np.isnan(split["image_angle_deg"][1])
+    out = summary({"direction_deg": metrics.angle_deg(relief, truth), "covered": np.ones(30, bool),
+                   "ood": np.zeros(30, bool), "to_light_camera": relief, "true_to_light_camera": truth})
+    assert out["image_angle_deg_median"] == pytest.approx(0, abs=1e-9)
+    assert out["slant_bias_deg"] == pytest.approx(np.median(expected))

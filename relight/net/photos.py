@@ -25,7 +25,7 @@ import numpy as np
 from relight import frames, metrics
 
 __all__ = ["SHARED_DATA_ENV", "shared_data_dir", "read_photo_set", "score_photo_set", "score_dataset", "summary",
-           "follows_light"]
+           "follows_light", "shading_split"]
 
 SHARED_DATA_ENV = "RELIGHT_SHARED_DATA"
 
@@ -112,6 +112,30 @@ def follows_light(pred, truth) -> tuple[float, float]:
     return out[0], out[1]
 
 
+def shading_split(pred, truth) -> dict[str, np.ndarray]:
+    """A camera-frame direction error split into the part an object's shading fixes and the
+    part it leaves open. Seen from the camera, a Lambertian object of unknown shape with its
+    occluding contour in view looks the same under a light ``(x, y, z)`` and a bas-relief
+    light ``(x, y, z / lambda)`` on a flattened or deepened object (Belhumeur, Kriegman &
+    Yuille 1999, the contour fixing the other two parameters of the GBR transform): the
+    light's direction in the image plane, ``atan2(y, x)``, is determined, its slant from the
+    view axis only by cast shadows, highlights and priors.
+
+    Returns per image ``image_angle_deg`` (the absolute difference of the two in-image
+    directions, 0-180) and ``slant_error_deg`` (predicted minus true slant, signed:
+    positive = the light placed further from the view axis). Unit vectors ``(N, 3)``;
+    for a light on the view axis the in-image direction is undefined (NaN)."""
+    pred, truth = np.asarray(pred, np.float64).reshape(-1, 3), np.asarray(truth, np.float64).reshape(-1, 3)
+    ang = np.degrees(np.arctan2(pred[:, 1], pred[:, 0]) - np.arctan2(truth[:, 1], truth[:, 0]))
+    image_angle = np.abs((ang + 180.0) % 360.0 - 180.0)
+    on_axis = (np.hypot(pred[:, 0], pred[:, 1]) < 1e-9) | (np.hypot(truth[:, 0], truth[:, 1]) < 1e-9)
+    image_angle[on_axis] = np.nan
+
+    def slant(v):
+        return np.degrees(np.arccos(np.clip(v[:, 2] / np.linalg.norm(v, axis=1), -1.0, 1.0)))
+    return {"image_angle_deg": image_angle, "slant_error_deg": slant(pred) - slant(truth)}
+
+
 def score_dataset(model, data_dir: str, split: str = "all", limit: int | None = None) -> dict:
     """Score a model on a dataset folder: per image ``direction_deg`` (camera frame, the
     model's own camera tilt where it has a camera head, else the true one),
@@ -148,7 +172,9 @@ def summary(scores: dict) -> dict:
     """Median and mean of each error, cone coverage (share of images whose 90% cone holds the
     truth, NaN for a model without cones), the share flagged out-of-distribution and, for a
     photo set, how well the predictions follow the light (:func:`follows_light`:
-    ``follow_x_r``, ``follow_y_r``)."""
+    ``follow_x_r``, ``follow_y_r``) and the error split by :func:`shading_split`
+    (``image_angle_deg_median``; ``slant_error_deg_median`` of the absolute slant error and
+    ``slant_bias_deg``, the median signed one)."""
     out = {"n": int(len(scores["direction_deg"]))}
     for key in ("direction_deg", "world_direction_deg", "colour_deg", "camera_tilt_error_deg"):
         if key in scores and len(scores[key]):
@@ -158,5 +184,10 @@ def summary(scores: dict) -> dict:
     out["cone90_coverage"] = float(covered.mean()) if covered.size else float("nan")
     out["ood_share"] = float(np.mean(scores["ood"])) if len(scores["ood"]) else 0.0
     if "true_to_light_camera" in scores:
-        out["follow_x_r"], out["follow_y_r"] = follows_light(scores["to_light_camera"], scores["true_to_light_camera"])
+        pred, truth = scores["to_light_camera"], scores["true_to_light_camera"]
+        out["follow_x_r"], out["follow_y_r"] = follows_light(pred, truth)
+        split = shading_split(pred, truth)
+        out["image_angle_deg_median"] = float(np.nanmedian(split["image_angle_deg"])) if len(pred) else float("nan")
+        out["slant_bias_deg"] = float(np.median(split["slant_error_deg"])) if len(pred) else float("nan")
+        out["slant_error_deg_median"] = float(np.median(np.abs(split["slant_error_deg"]))) if len(pred) else float("nan")
     return out
