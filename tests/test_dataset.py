@@ -154,7 +154,7 @@ def test_card_written_before_the_photo_and_material_settings_still_resumes(tmp_p
     from relight.dataset import DatasetError
     from relight.generator.sampling import LEGACY_CONFIG
     later = ("void_fraction", "glossy_fraction", "metal_fraction", "flash_fraction", "flash_cone_deg",
-             "ambient_fraction", "ambient_ratio")
+             "ambient_fraction", "ambient_ratio", "void_albedo")
     # exact: two settings written in code (no float computed here), "off" is today's default
     assert all(json.dumps(LEGACY_CONFIG[k]) == json.dumps(list(v) if isinstance(v, tuple) else v)  # exact
                for k, v in ((k, getattr(CFG, k)) for k in later))

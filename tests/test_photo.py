@@ -12,7 +12,7 @@ import pytest
 import torch
 
 from relight import frames
-from relight.errors import DatasetError
+from relight.errors import ConfigError, DatasetError
 from relight.imageio import to_srgb8
 from relight.net.augment import HABLE_WHITE, PipelineAugment, hable
 from relight.net.model import LightNet, NetConfig, camera_tilt_deg
@@ -59,6 +59,24 @@ def test_photo_draws_come_last_so_other_draws_are_unchanged():
         assert b.room.floor_texture != a.room.floor_texture
 
 
+def test_void_albedo_sets_the_backdrop_grey_and_nothing_else():
+    """void_albedo (0.02, 0.05), black cloth rather than an ideal black: the same uniform
+    draw scaled to the new range (rounded to 1e-4), every other draw as with the default."""
+    dark = GeneratorConfig(void_fraction=1.0)
+    cloth = dataclasses.replace(dark, void_albedo=(0.02, 0.05))
+    for i in range(8):
+        a, b = sample_scene(dark, SEED, i), sample_scene(cloth, SEED, i)
+        assert a.light == b.light and a.objects == b.objects and a.camera == b.camera and a.render == b.render
+        for ta, tb in zip((a.room.floor_texture, *a.room.wall_textures), (b.room.floor_texture, *b.room.wall_textures)):
+            ga, gb = ta["colors"][0][0], tb["colors"][0][0]
+            assert 0.0 <= ga <= VOID_ALBEDO and 0.02 <= gb <= 0.05
+            assert gb == pytest.approx(0.02 + 3.0 * ga, abs=2e-4)   # u = ga / 0.01, both rounded to 1e-4
+    with pytest.raises(ConfigError):
+        GeneratorConfig(void_albedo=(0.05, 0.02))
+    with pytest.raises(ConfigError):
+        GeneratorConfig(void_albedo=(0.0, 0.5))
+
+
 def test_flash_lights_lie_near_the_camera_and_are_drawn_last():
     """flash_fraction 0.5 over the photo preset: about half the lights lie within
     flash_cone_deg of the direction to the camera (none below light_tilt_deg's minimum);
@@ -80,7 +98,6 @@ def test_flash_lights_lie_near_the_camera_and_are_drawn_last():
 
 
 def test_photo_settings_are_validated():
-    from relight.errors import ConfigError
     for bad in ({"void_fraction": 1.5}, {"fov_range_deg": (90.0, 20.0)}, {"view_halfwidth_m": (0.0, 3.0)},
                 {"flash_fraction": 1.2}, {"flash_cone_deg": 120.0}):
         with pytest.raises(ConfigError):

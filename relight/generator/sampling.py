@@ -92,6 +92,7 @@ class GeneratorConfig:
     view_halfwidth_m: tuple[float, float] | None = None  # half-width of the view at the scene centre,
     #                                                      drawn per image; sets the camera distance
     void_fraction: float = 0.0   # share of scenes on a near-black void (walls and floor of albedo <= VOID_ALBEDO)
+    void_albedo: tuple[float, float] = (0.0, 0.01)   # a void's grey albedo range (VOID_ALBEDO; black cloth 0.01-0.05)
     # Object materials (0: every object matte, and the draws of every image exactly as before)
     glossy_fraction: float = 0.0  # share of objects with a varnish-like white specular lobe (GLOSSY_WEIGHT)
     metal_fraction: float = 0.0   # share of objects that are metals (a specular lobe alone, METAL_F0 colours)
@@ -154,6 +155,7 @@ class GeneratorConfig:
         if not (isinstance(self.flash_cone_deg, (int, float)) and 0.0 <= self.flash_cone_deg <= 90.0):
             raise ConfigError(f"flash_cone_deg: expected a number in [0, 90], got {self.flash_cone_deg!r}")
         rng_ok("ambient_ratio", 0.0, 10.0)
+        rng_ok("void_albedo", 0.0, 0.2)
         for name in ("void_fraction", "glossy_fraction", "metal_fraction", "mesh_fraction", "flash_fraction",
                      "ambient_fraction"):
             v = getattr(self, name)
@@ -189,7 +191,8 @@ class GeneratorConfig:
         return dataclasses.asdict(self)
 
 
-VOID_ALBEDO = 0.01        # walls and floor of a void scene: grey albedo in [0, VOID_ALBEDO] (black cloth)
+VOID_ALBEDO = 0.01        # walls and floor of a void scene: grey albedo in [0, VOID_ALBEDO] by default
+#                           (config void_albedo: real black cloth, velvet to felt, reflects about 1-5%)
 MIN_CAMERA_R_M = 6.0      # a camera set by view_halfwidth_m stays at least this far from the centre
 
 # Named generator presets (``relight generate --preset NAME``): overrides of the defaults.
@@ -209,7 +212,7 @@ LEGACY_CONFIG: dict = {"sampler": LEGACY_SAMPLER, "colour_prior": "hsv", "object
                        # the photo-like, material, flash and sky draws: off before they existed
                        "void_fraction": 0.0, "glossy_fraction": 0.0, "metal_fraction": 0.0,
                        "flash_fraction": 0.0, "flash_cone_deg": 40.0, "ambient_fraction": 0.0,
-                       "ambient_ratio": [0.05, 0.5]}
+                       "ambient_ratio": [0.05, 0.5], "void_albedo": [0.0, VOID_ALBEDO]}
 
 
 BUILTIN_MESHES = "builtin"   # mesh_dir value: the meshes shipped in relight/assets/meshes
@@ -352,7 +355,7 @@ def _photo_draws(rng: np.random.Generator, cfg: GeneratorConfig, camera: CameraS
     camera = dataclasses.replace(camera, fov_deg=fov, r_m=min(r_m, room.inradius_m / 2.0))
     if cfg.void_fraction > 0 and rng.uniform() < cfg.void_fraction:
         def dark():
-            grey = float(np.round(rng.uniform(0.0, VOID_ALBEDO), 4))
+            grey = float(np.round(rng.uniform(*cfg.void_albedo), 4))
             return {"kind": "checker", "seed": 0, "cells": 2, "angle": 0.0, "colors": [[grey] * 3, [grey] * 3]}
         room = dataclasses.replace(room, wall_textures=tuple(dark() for _ in room.wall_textures),
                                    floor_texture=dark())
