@@ -23,6 +23,17 @@ One run on fixed default scenes (``sample_scene(GeneratorConfig(res), 4242, i)``
     export-blender SCENE --spp S --out x.blend --render x.exr`` (Cycles writes no PNG
     there: counted in its favour). The two commands alternate scene by scene so both see
     the same machine load; wall seconds per scene file and their ratio.
+(d) ``--end-to-end --batch N``: the same at every target, but N default scene files per
+    process on both sides, so start-up is paid once: one process of relight's environment
+    renders all N with the library (``load_scene``, ``render_spec``, ``write_exr``,
+    ``write_png``: what ``relight render`` does per file) and one process of the Blender
+    environment renders the same N files with Cycles (``load_scene``,
+    :func:`relight.scene.blender.render_cycles` writing the EXR: ``relight export-blender
+    --render`` without the .blend; no PNG, counted in its favour). Per side: the process's
+    wall (parent's clock), the wall per image after the first (the child's clock at each
+    image written: (last - first) / (N - 1)) and start-up = wall - N x per image (imports,
+    set-up, the first image's extra, exit). The two processes alternate over ``--repeats``
+    (2) and each side's fastest repeat is shown (all walls are printed).
 
 Relative RMSE is the generator's: ``sqrt(mean((x - ref)^2)) / mean(ref)``. References
 are cached under ``--cache`` keyed by scene, renderer, code and spp. Skips (one line,
@@ -30,12 +41,13 @@ exit 0) when the Blender environment (``scripts/setup_blender.sh``) is absent.
 
 Usage: python benchmarks/bench_cycles.py [--n 4] [--res 128] [--ref-spp 2048]
                                          [--targets 0.03,0.015,0.0075] [--cache DIR]
-                                         [--end-to-end]
+                                         [--end-to-end [--batch N] [--repeats 2]]
 """
 from __future__ import annotations
 
 import dataclasses
 import hashlib
+import json
 import math
 import os
 import subprocess
@@ -43,7 +55,8 @@ import sys
 import tempfile
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, REPO)
 
 from relight.commands import argtypes as at  # noqa: E402
 
@@ -57,6 +70,7 @@ LADDER_SPP = (4, 16, 64, 256)   # exact for every Mitsuba sampler but "orthogona
 NOISY_SEED_OFFSET = 1000              # noisy renders use other seeds than the references
 DEFAULT_CACHE = os.path.join("~", "relight-data", "bench-cycles")
 EON_PLUGIN = "roughdiffuse_cycles"
+PROFILE_TOTAL_OVER_KERNEL = 1.74   # relight's wall / kernel per image (docs/generation-profile.md)
 
 
 # --------------------------------------------------------------------------- Cycles' Oren-Nayar in Mitsuba
@@ -199,15 +213,13 @@ def time_at(times: dict[int, float], spp: float) -> float:
 
 def end_to_end(specs, errors: dict, target: float) -> None:
     """(c): the user's command per scene file, both renderers at ``target`` (module docstring)."""
-    from relight.render import exact_spp
-    sm, sc = spp_for(errors["m"], target), spp_for(errors["c"], target)
+    counts = equal_error_spp(specs, errors, target)
     print(f"\n## (c) end to end at relative RMSE {target}: one fresh process per scene file, "
           "start-up, scene file in, images out")
-    if sm is None or sc is None:
+    if counts is None:
         print("a renderer does not reach the target on the ladder: no end-to-end figure")
         return
-    sampler = getattr(specs[0].render, "sampler", "independent")
-    sm, sc = exact_spp(sampler, math.ceil(sm)), math.ceil(sc)
+    sm, sc = counts
     walls = {"m": [], "c": []}
     with tempfile.TemporaryDirectory(prefix="relight-e2e-") as tmp:
         for i, spec in enumerate(specs):
@@ -233,24 +245,179 @@ def end_to_end(specs, errors: dict, target: float) -> None:
     print(f"Cycles / relight, end to end: {c / m:.2f}")
 
 
+# A batch of scene files in one process, either renderer: run as ``PYTHON SCRIPT JOB.json``
+# with this checkout on PYTHONPATH (relight's environment for "mitsuba", the Blender one
+# for "cycles"); writes the child's clock after its imports and after each image to
+# job["marks"] (not stdout: Blender writes its log there).
+BATCH_SCRIPT = """
+import json, sys, time
+t0 = time.perf_counter()
+job = json.load(open(sys.argv[1]))
+import dataclasses
+from relight.scene.spec import load_scene
+if job["renderer"] == "mitsuba":
+    from relight.imageio import write_exr, write_png
+    from relight.scene.build import render_spec
+
+    def render(spec, item):
+        image = render_spec(spec)
+        write_exr(item["exr"], image)
+        write_png(item["png"], image)
+else:
+    from relight.scene.blender import render_cycles
+
+    def render(spec, item):
+        render_cycles(spec, exr_path=item["exr"])
+marks = [time.perf_counter() - t0]
+for item in job["scenes"]:
+    spec = load_scene(item["scene"])
+    spec = dataclasses.replace(spec, render=dataclasses.replace(spec.render, spp=job["spp"]))
+    render(spec, item)
+    marks.append(time.perf_counter() - t0)
+with open(job["marks"], "w") as f:
+    json.dump(marks, f)
+"""
+
+
+@dataclasses.dataclass
+class BatchRun:
+    """One batch process: wall seconds (parent's clock) and the child's marks (after
+    imports, then after each image)."""
+    wall: float
+    marks: list[float]
+
+    @property
+    def n(self) -> int:
+        return len(self.marks) - 1
+
+    @property
+    def per_image(self) -> float:
+        """Wall per image after the first: (last image - first image) / (N - 1)."""
+        return (self.marks[-1] - self.marks[1]) / (self.n - 1)
+
+    @property
+    def startup(self) -> float:
+        """Everything but N steady images: wall - N x per image."""
+        return self.wall - self.n * self.per_image
+
+    @property
+    def imports(self) -> float:
+        return self.marks[0]
+
+
+def run_batch(renderer: str, scenes: list[str], spp: int, folder: str) -> BatchRun:
+    """Render the scene files ``scenes`` at ``spp`` in one fresh process of ``renderer``
+    ("mitsuba": relight's environment, "cycles": the Blender one), outputs in ``folder``."""
+    python = sys.executable if renderer == "mitsuba" else blender.blender_python()
+    if python is None:
+        from relight.errors import BlenderError
+        raise BlenderError(blender.INSTALL_HINT)
+    os.makedirs(folder, exist_ok=True)
+    script = os.path.join(folder, "batch.py")
+    with open(script, "w") as f:
+        f.write(BATCH_SCRIPT)
+    items = [{"scene": s, "exr": os.path.join(folder, f"{i}.exr"), "png": os.path.join(folder, f"{i}.png")}
+             for i, s in enumerate(scenes)]
+    job = {"renderer": renderer, "spp": int(spp), "scenes": items, "marks": os.path.join(folder, "marks.json")}
+    job_path = os.path.join(folder, "job.json")
+    with open(job_path, "w") as f:
+        json.dump(job, f)
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (REPO, env.get("PYTHONPATH")) if p)
+    t0 = time.perf_counter()
+    done = subprocess.run([python, script, job_path], capture_output=True, text=True, env=env)
+    wall = time.perf_counter() - t0
+    if done.returncode != 0:
+        raise RuntimeError(f"{renderer} batch failed: {(done.stderr or '').strip()[-300:]}")
+    missing = [it["exr"] for it in items if not os.path.isfile(it["exr"])]
+    if missing:
+        raise RuntimeError(f"{renderer} batch wrote no {missing[0]}")
+    with open(job["marks"]) as f:
+        return BatchRun(wall, json.load(f))
+
+
+def equal_error_spp(specs, errors: dict, target: float) -> tuple[int, int] | None:
+    """Mitsuba's and Cycles' sample counts at ``target`` (from the ladder, rounded up;
+    Mitsuba's to one its sampler takes exactly), or None when one is above the ladder."""
+    from relight.render import exact_spp
+    sm, sc = spp_for(errors["m"], target), spp_for(errors["c"], target)
+    if sm is None or sc is None:
+        return None
+    sampler = getattr(specs[0].render, "sampler", "independent")
+    return exact_spp(sampler, math.ceil(sm)), math.ceil(sc)
+
+
+def end_to_end_batch(n: int, res: int, errors: dict, times: dict, targets: list[float],
+                     repeats: int) -> None:
+    """(d): ``n`` default scene files in one process per renderer (module docstring)."""
+    from relight.generator.sampling import GeneratorConfig, sample_scene
+    specs = [sample_scene(GeneratorConfig(res=res), SCENE_SEED, i) for i in range(n)]
+    print(f"\n## (d) end to end, batch form: {n} default scene files ({res} px) in one process per "
+          f"renderer; fastest of {repeats} alternated repeats")
+    with tempfile.TemporaryDirectory(prefix="relight-e2e-batch-") as tmp:
+        scenes = []
+        for i, spec in enumerate(specs):
+            scenes.append(os.path.join(tmp, f"scene{i}.json"))
+            spec.save(scenes[-1])
+        for target in targets:
+            counts = equal_error_spp(specs, errors, target)
+            print(f"\n### relative RMSE {target}")
+            if counts is None:
+                print("a renderer does not reach the target on the ladder: no batch figure")
+                continue
+            spp = dict(zip(("m", "c"), counts))
+            runs = {"m": [], "c": []}
+            for r in range(repeats):   # alternate which side goes first
+                for key in (("m", "c") if r % 2 == 0 else ("c", "m")):
+                    folder = os.path.join(tmp, f"{target}-{key}-{r}")
+                    runs[key].append(run_batch("mitsuba" if key == "m" else "cycles", scenes, spp[key], folder))
+            best = {k: min(v, key=lambda run: run.wall) for k, v in runs.items()}
+            print("| renderer | spp | process wall s (all repeats) | per image after the first s "
+                  "| start-up s (wall - N x per image) | of which imports before the first scene s |")
+            print("|---|---|---|---|---|---|")
+            for key, name in (("m", "Mitsuba (relight: EXR + PNG)"), ("c", "Cycles (EXR)")):
+                b = best[key]
+                print(f"| {name} | {spp[key]} | {b.wall:.2f} ({', '.join(f'{x.wall:.2f}' for x in runs[key])}) "
+                      f"| {b.per_image:.3f} | {b.startup:.2f} | {b.imports:.2f} |")
+            m, c = best["m"], best["c"]
+            call = time_at(times["c"], spp_for(errors["c"], target)) / time_at(times["m"], spp_for(errors["m"], target))
+            print(f"Cycles / relight: process {c.wall / m.wall:.2f}, per image {c.per_image / m.per_image:.2f} "
+                  f"(render call on a loaded scene, (b): {call:.2f}); relight's per image at its kernel "
+                  f"alone (per image / {PROFILE_TOTAL_OVER_KERNEL}) would give "
+                  f"{c.per_image / (m.per_image / PROFILE_TOTAL_OVER_KERNEL):.2f}")
+
+
 # --------------------------------------------------------------------------- main
+def relative_rmse_list(text: str) -> list[float]:
+    """``--targets``: comma-separated relative RMSEs, each in (0, 1]."""
+    return [at.relative_rmse(t.strip()) for t in text.split(",")]
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = at.OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=at.int_in(1, 100_000, "a count"), default=4, help="scenes")
     ap.add_argument("--res", type=at.resolution, default=128)
     ap.add_argument("--ref-spp", type=at.spp, default=2048, help="samples of the converged references")
-    ap.add_argument("--targets", default="0.03,0.015,0.0075", help="relative RMSE targets")
+    ap.add_argument("--targets", type=relative_rmse_list, default=[0.03, 0.015, 0.0075],
+                    help="relative RMSE targets, comma-separated (default 0.03,0.015,0.0075)")
     ap.add_argument("--cache", default=DEFAULT_CACHE, help="folder of cached references")
     ap.add_argument("--end-to-end", action="store_true",
                     help="also time the user's command per scene file at the first target (section c)")
+    ap.add_argument("--batch", type=at.int_in(2, 10_000, "a scene-file count"), default=None, metavar="N",
+                    help="with --end-to-end: also N scene files in one process per renderer at every "
+                         "target (section d)")
+    ap.add_argument("--repeats", type=at.int_in(1, 100, "a repeat count"), default=2,
+                    help="alternated repeats of each batch process (default 2; the fastest is shown)")
     args = ap.parse_args(argv)
+    if args.batch is not None and not args.end_to_end:
+        ap.error("--batch needs --end-to-end")
     if blender.blender_python() is None:
         print("bench_cycles: skipped (no Blender environment; run scripts/setup_blender.sh)")
         return 0
     from relight.generator.sampling import GeneratorConfig, sample_scene
     cache = os.path.expanduser(args.cache)
     os.makedirs(cache, exist_ok=True)
-    targets = [float(t) for t in args.targets.split(",")]
+    targets = args.targets
     specs = [sample_scene(GeneratorConfig(res=args.res), SCENE_SEED, i) for i in range(args.n)]
 
     mitsuba, mitsuba_eon, cycles = MitsubaSide(), MitsubaSide(eon=True), CyclesSide()
@@ -328,6 +495,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"| {target:.4f} | {' | '.join(fmt(sm, tm))} | {' | '.join(fmt(sc, tc))} | {ratio} |")
     if args.end_to_end:
         end_to_end(specs, errors, targets[0])
+        if args.batch:
+            end_to_end_batch(args.batch, args.res, errors, times, targets, args.repeats)
     return 0
 
 

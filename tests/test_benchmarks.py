@@ -100,6 +100,22 @@ def test_mid_benchmark_refuses_zero_rooms():
     assert not os.path.exists("/nonexistent/mid")
 
 
+@pytest.mark.parametrize("argv, option", [
+    (["--end-to-end", "--batch", "1"], "--batch"),      # no image after the first to time
+    (["--end-to-end", "--batch", "nan"], "--batch"),
+    (["--end-to-end", "--batch", "1e308"], "--batch"),
+    (["--batch", "4"], "--batch"),                      # the batch form is part of --end-to-end
+    (["--end-to-end", "--batch", "4", "--repeats", "0"], "--repeats"),
+    (["--targets", "0.02,0"], "--targets"),
+    (["--targets", "0.02,x"], "--targets"),
+])
+def test_cycles_batch_setting_is_one_line(argv, option, capfd, monkeypatch):
+    code, out, err = _run_here(["benchmarks/bench_cycles.py", *argv], capfd, monkeypatch)
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and option in lines[0] and "error:" in lines[0], err
+    assert "skipped" not in out   # refused before looking for Blender
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("argv", COMMANDS, ids=lambda a: os.path.basename(a[0]))
 def test_quick_command_runs(argv, tmp_path):
