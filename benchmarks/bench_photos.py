@@ -110,6 +110,11 @@ def main(argv=None) -> int:
     ap.add_argument("--no-devset", action="store_true", help="skip the Mitsuba / Cycles dev sets")
     ap.add_argument("--camera-tilt", type=at.float_in(-89.0, 89.0, "a camera tilt in degrees"), default=None,
                     help="decode with this camera tilt instead of each model's own (or the paper's 45)")
+    ap.add_argument("--backdrop-off", action="store_true",
+                    help="also score psm_objects and the gray ball with everything outside the object "
+                         "black (the sets' masks): how much the surroundings move each model")
+    ap.add_argument("--data", action="append", default=[], metavar="DIR",
+                    help="also score this dataset folder (relight generate output; repeatable)")
     ap.add_argument("--json", default=None, help="also write every summary to this JSON file")
     ap.add_argument("--photos", default=None,
                     help="folder holding psm_objects/ and psm_spheres/ (default: $RELIGHT_SHARED_DATA, "
@@ -126,13 +131,22 @@ def main(argv=None) -> int:
         spheres = os.path.join(shared, "psm_spheres")
         if os.path.isdir(objects):
             sets.append(("psm_objects (60 photos)", "photo", objects, None))
+            if args.backdrop_off:
+                sets.append(("psm_objects, backdrop blacked out (masks)", "photo-off", objects, None))
         else:
             print(f"psm_objects: skipped ({objects} not present)")
         if os.path.isdir(spheres):
             sets.append(("psm_spheres gray ball", "photo", spheres, ("gray",)))
+            if args.backdrop_off:
+                sets.append(("psm_spheres gray ball, backdrop blacked out (masks)", "photo-off", spheres, ("gray",)))
             sets.append(("psm_spheres chrome ball", "photo", spheres, ("chrome",)))
         else:
             print(f"psm_spheres: skipped ({spheres} not present)")
+        for folder in args.data:
+            if os.path.isfile(os.path.join(folder, "manifest.jsonl")):
+                sets.append((f"{folder}", "data", folder, None))
+            else:
+                print(f"{folder}: skipped (no manifest.jsonl: not a relight dataset)")
         if not args.no_devset:
             mitsuba, cycles, agx = ensure_devset(args.devset, args.n)
             sets.append((f"dev set, Mitsuba ({args.n} default rooms)", "data", mitsuba, None))
@@ -142,17 +156,19 @@ def main(argv=None) -> int:
         results = {}
         for label, kind, folder, names in sets:
             print(f"\n{label}")
-            if kind == "photo":
+            if kind in ("photo", "photo-off"):
                 _, truth = photos.read_photo_set(folder, names)
                 print(f"  {'':<42}  {'n':>4}  direction       cone90  ood    follows x y"
                       "  in-image  slant |err| bias")
                 print(_row("  constant guess: light at the camera", _constant_guess(truth)))
             else:
                 head_keys = ("direction_deg", "world_direction_deg", "colour_deg")
-                print(f"  {'':<42}  {'n':>4}  cam-frame dir   world dir (true tilt)   colour   cone90  ood")
+                print(f"  {'':<42}  {'n':>4}  cam-frame dir   world dir (true tilt)   colour   cone90  ood"
+                      "    follows x y  in-image  slant |err| bias")
             for name, model in models:
-                if kind == "photo":
-                    s = photos.summary(photos.score_photo_set(model, folder, names, args.camera_tilt))
+                if kind in ("photo", "photo-off"):
+                    s = photos.summary(photos.score_photo_set(model, folder, names, args.camera_tilt,
+                                                              backdrop_off=kind == "photo-off"))
                     print(_row(f"  {_label(name)}", s))
                 else:
                     s = photos.summary(photos.score_dataset(model, folder, limit=args.n))

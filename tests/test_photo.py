@@ -243,6 +243,39 @@ def test_photo_set_reader(tmp_path):
         read_photo_set(str(tmp_path))
 
 
+def test_backdrop_off_scores_the_photo_as_if_its_surroundings_were_black(tmp_path):
+    """score_photo_set(backdrop_off=True) on a photo with a lit backdrop gives the answer of
+    the same photo saved with its backdrop black; a missing mask is one DatasetError."""
+    from PIL import Image
+
+    from relight.net.photos import score_photo_set
+    from relight.net.predict import load_model
+    rng = np.random.default_rng(2)
+    yy, xx = np.mgrid[:48, :64]
+    mask = (yy - 24) ** 2 + (xx - 30) ** 2 < 15 ** 2
+    lit, black = tmp_path / "lit", tmp_path / "black"
+    for d in (lit, black):
+        d.mkdir()
+        (d / "lights.txt").write_text("2\n0 0 1\n0.6 0.8 0\n")
+    for k in range(2):
+        shade = (150 + 90 * (xx / 64.0 if k else yy / 48.0))[..., None] * np.ones(3)
+        backdrop = rng.integers(20, 90, size=(48, 64, 3))
+        photo = np.where(mask[..., None], shade, backdrop).astype(np.uint8)
+        Image.fromarray(photo).save(lit / f"ball.{k}.png")
+        Image.fromarray(np.where(mask[..., None], photo, 0).astype(np.uint8)).save(black / f"ball.{k}.png")
+    Image.fromarray((mask * 255).astype(np.uint8)).save(lit / "ball.mask.png")
+    model = load_model()
+    off = score_photo_set(model, str(lit), camera_tilt_deg=10.0, backdrop_off=True)
+    ref = score_photo_set(model, str(black), camera_tilt_deg=10.0)
+    plain = score_photo_set(model, str(lit), camera_tilt_deg=10.0)
+    assert off["id"] == ref["id"] == ["ball.0", "ball.1"]
+    np.testing.assert_allclose(off["to_light_camera"], ref["to_light_camera"], atol=1e-5)
+    assert np.max(np.abs(plain["to_light_camera"] - ref["to_light_camera"])) > 1e-3   # the backdrop mattered
+    (lit / "ball.mask.png").unlink()
+    with pytest.raises(DatasetError, match="no mask"):
+        score_photo_set(model, str(lit), backdrop_off=True)
+
+
 def test_calibrate_fits_only_the_ood_detector_in_mode_none(tmp_path):
     """``relight calibrate --mode none --ood``: the kappa head and its temperature stay as they
     came, the detector is fitted and travels in the file; mode none alone is refused."""

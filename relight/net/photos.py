@@ -78,15 +78,43 @@ def _cone_covers(preds: list[dict], err: np.ndarray) -> np.ndarray:
     return cones >= err
 
 
+def _backdrop_off(files: list[str]) -> list[np.ndarray]:
+    """Each photo as linear RGB with everything outside its object black: the set's
+    ``NAME.mask.png`` (white where the object is) times the pixels."""
+    from relight.colour import srgb_decode
+    from relight.errors import DatasetError
+    from relight.imageio import load_image
+    out = []
+    for f in files:
+        mask_path = os.path.join(os.path.dirname(f), os.path.basename(f).split(".")[0] + ".mask.png")
+        if not os.path.exists(mask_path):
+            raise DatasetError(f"{mask_path}: no mask for {os.path.basename(f)} (needed to black out the backdrop)")
+        px, enc, _ = load_image(f)
+        mask = load_image(mask_path)[0][..., 0] > 0.5
+        if mask.shape != px.shape[:2]:
+            raise DatasetError(f"{mask_path}: {mask.shape[1]}x{mask.shape[0]} mask for a "
+                               f"{px.shape[1]}x{px.shape[0]} photo")
+        out.append((srgb_decode(px) if enc == "srgb" else px) * mask[..., None])
+    return out
+
+
 def score_photo_set(model, folder: str, names: tuple[str, ...] | None = None,
-                    camera_tilt_deg: float | None = None) -> dict:
+                    camera_tilt_deg: float | None = None, backdrop_off: bool = False) -> dict:
     """Predict every image of a photo set (:func:`read_photo_set`) and score it against the
     true light, camera frame. ``camera_tilt_deg``: None = the model's own (camera head; else
-    the paper's 45). Returns per-image arrays ``id``, ``direction_deg``, ``covered``, ``ood``,
+    the paper's 45). ``backdrop_off``: everything outside the object (its ``NAME.mask.png``)
+    set to black first, a diagnostic of how much the surroundings move the answer.
+    Returns per-image arrays ``id``, ``direction_deg``, ``covered``, ``ood``,
     ``camera_tilt_deg``, ``to_light_camera`` and ``true_to_light_camera``."""
-    from relight.net.predict import predict_files
+    from relight.net.predict import predict_arrays, predict_files
     files, truth = read_photo_set(folder, names)
-    preds = predict_files(model, files, camera_tilt_deg)
+    if backdrop_off:
+        preds = predict_arrays(model, _backdrop_off(files), None if camera_tilt_deg is None else
+                               [camera_tilt_deg] * len(files))
+        for p, f in zip(preds, files):
+            p["id"] = os.path.splitext(os.path.basename(f))[0]
+    else:
+        preds = predict_files(model, files, camera_tilt_deg)
     pred = np.array([p["to_light_camera"] for p in preds], dtype=np.float64).reshape(-1, 3)
     err = metrics.angle_deg(pred, truth)
     return {"id": [p["id"] for p in preds], "direction_deg": err, "covered": _cone_covers(preds, err),
@@ -140,7 +168,8 @@ def score_dataset(model, data_dir: str, split: str = "all", limit: int | None = 
     """Score a model on a dataset folder: per image ``direction_deg`` (camera frame, the
     model's own camera tilt where it has a camera head, else the true one),
     ``world_direction_deg`` (Table 1's direction error: decoded with the true camera tilt),
-    ``colour_deg``, ``covered``, ``ood``, ``camera_tilt_error_deg``."""
+    ``colour_deg``, ``covered``, ``ood``, ``camera_tilt_error_deg``, and the camera-frame
+    directions ``to_light_camera`` (predicted) and ``true_to_light_camera``."""
     from relight.net.data import LightDataset
     from relight.net.evaluate import decode_outputs, target_frame_of
     from relight.net.predict import _predict_inputs
@@ -165,7 +194,8 @@ def score_dataset(model, data_dir: str, split: str = "all", limit: int | None = 
     return {"id": [r["id"] for r in ds.records], "direction_deg": err, "world_direction_deg": np.asarray(world),
             "colour_deg": np.asarray(metrics.colour_error_deg(rgb, truth["rgb"])),
             "covered": _cone_covers(preds, err), "ood": np.array([bool(p.get("ood", False)) for p in preds]),
-            "camera_tilt_error_deg": np.abs(np.array([p["camera_tilt_deg"] for p in preds]) - truth["camera_tilt_deg"])}
+            "camera_tilt_error_deg": np.abs(np.array([p["camera_tilt_deg"] for p in preds]) - truth["camera_tilt_deg"]),
+            "to_light_camera": pred_cam, "true_to_light_camera": true_cam}
 
 
 def summary(scores: dict) -> dict:
