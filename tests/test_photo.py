@@ -74,7 +74,7 @@ def test_void_albedo_sets_the_backdrop_grey_and_nothing_else():
     with pytest.raises(ConfigError):
         GeneratorConfig(void_albedo=(0.05, 0.02))
     with pytest.raises(ConfigError):
-        GeneratorConfig(void_albedo=(0.0, 0.5))
+        GeneratorConfig(void_albedo=(0.0, 1.5))
 
 
 def test_flash_lights_lie_near_the_camera_and_are_drawn_last():

@@ -155,7 +155,7 @@ class GeneratorConfig:
         if not (isinstance(self.flash_cone_deg, (int, float)) and 0.0 <= self.flash_cone_deg <= 90.0):
             raise ConfigError(f"flash_cone_deg: expected a number in [0, 90], got {self.flash_cone_deg!r}")
         rng_ok("ambient_ratio", 0.0, 10.0)
-        rng_ok("void_albedo", 0.0, 0.2)
+        rng_ok("void_albedo", 0.0, 1.0)
         for name in ("void_fraction", "glossy_fraction", "metal_fraction", "mesh_fraction", "flash_fraction",
                      "ambient_fraction"):
             v = getattr(self, name)
