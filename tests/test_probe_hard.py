@@ -395,6 +395,30 @@ def test_chrome_outline_grows_past_a_reflection_circle_inside_it():
     assert grown["chrome"]
 
 
+def test_every_radius_that_passes_the_screen_is_refined(monkeypatch):
+    # a chrome sphere on a dark plate of broken outline (floor dots), 1.2 times its radius and
+    # 3 px higher: the one proposal is the plate's circle. The screen keeps the proposal's
+    # centre, so the sphere's radius (0.85 of it) screens worse than the plate's own; refined,
+    # it lands on the sphere, which is better supported than the plate
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 62.0, 5.0)
+    cx, cy, r = detect.outline_circle(cam, sphere)
+    to_light = np.array([0.3, 0.4, 0.87])
+    # linear in the background: the sphere over any background is i0 + background (i1 - i0)
+    i0 = _render(cam, sphere, to_light, background=0.0, clip=False)
+    i1 = _render(cam, sphere, to_light, background=1.0, clip=False)
+    plate = (cx, cy - 3.0, 1.2 * r)
+    ys, xs = np.mgrid[0:H, 0:W] + 0.5
+    dots = np.sin(6.0 * np.arctan2(ys - plate[1], xs - plate[0])) > 0.5
+    background = np.where((np.hypot(xs - plate[0], ys - plate[1]) < plate[2]) & dots, 0.05, 0.35)
+    background = ndimage.gaussian_filter(background, 0.6)[..., None]
+    image = _quantise(np.clip(i0 + background * (i1 - i0), 0.0, 1.0))
+    monkeypatch.setattr(detect, "hough_circles", lambda img: [plate])
+    chrome = detect.pick_sphere(detect.find_spheres(image, cam), "chrome")
+    assert math.dist(chrome["circle"][:2], (cx, cy)) < 0.5
+    assert abs(chrome["circle"][2] - r) < 0.5
+
+
 def test_a_small_sphere_with_a_highlight_is_proposed_when_the_proposals_overflow(monkeypatch):
     # strong-edged diffuse discs win the Hough votes; a faint small disc with one bright
     # pixel (a chrome sphere's highlight) still gets one of the last places

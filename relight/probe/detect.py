@@ -435,9 +435,9 @@ def find_spheres(image: np.ndarray, camera: Camera) -> list[dict]:
             continue
         refined.append((cx, cy, r))
         # cheap screen: is the strongest nearby edge on this circle often enough? The
-        # circle is tried as proposed and, when it screens better, at a slightly smaller or
-        # larger radius (a chrome sphere's rim is faint where it mirrors its surroundings,
-        # so the proposed radius is often off); both are refined, the better supported stays
+        # circle is tried as proposed and at a slightly smaller and larger radius (a chrome
+        # sphere's rim is faint where it mirrors its surroundings, so the proposed radius is
+        # often off); those screening well enough are refined, the best supported stays
         screened = []
         for k in RADIUS_HYPOTHESES:
             try:
@@ -449,11 +449,12 @@ def find_spheres(image: np.ndarray, camera: Camera) -> list[dict]:
                              trial, r * k))
         if not screened:
             continue
-        trials = [screened[0]]
-        alt = max(screened[1:], key=lambda t: t[0], default=None)
-        if alt is not None and alt[0] > 1.1 * screened[0][0]:
-            trials.append(alt)
-        for near, guess, rk in trials:
+        # every radius that passes the screen is refined: the screen keeps the proposed
+        # centre, which is off on a chrome sphere as its radius is (the rim is faint on
+        # one side), so it cannot rank the radii; the refinements can (the former rule,
+        # another radius only when it screens 10% better, left scene 9's sphere out: its
+        # proposal 3.6 px off centre and 20% too large)
+        for near, guess, rk in screened:
             if near < MIN_EDGE_SUPPORT * EDGE_ANGLES:
                 continue
             try:
