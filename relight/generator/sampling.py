@@ -55,6 +55,10 @@ def read_config_file(path: str) -> dict:
     return data
 
 
+VOID_ALBEDO = 0.01        # walls and floor of a void scene: grey albedo in [0, VOID_ALBEDO] by default
+#                           (config void_albedo: real black cloth, velvet to felt, reflects about 1-5%)
+
+
 @dataclass(frozen=True)
 class GeneratorConfig:
     """Settings of the SID2-style generator (units in the names; ranges inclusive)."""
@@ -92,7 +96,7 @@ class GeneratorConfig:
     view_halfwidth_m: tuple[float, float] | None = None  # half-width of the view at the scene centre,
     #                                                      drawn per image; sets the camera distance
     void_fraction: float = 0.0   # share of scenes on a near-black void (walls and floor of albedo <= VOID_ALBEDO)
-    void_albedo: tuple[float, float] = (0.0, 0.01)   # a void's grey albedo range (VOID_ALBEDO; black cloth 0.01-0.05)
+    void_albedo: tuple[float, float] = (0.0, VOID_ALBEDO)   # a void's grey albedo range (black cloth 0.01-0.05)
     # Object materials (0: every object matte, and the draws of every image exactly as before)
     glossy_fraction: float = 0.0  # share of objects with a varnish-like white specular lobe (GLOSSY_WEIGHT)
     metal_fraction: float = 0.0   # share of objects that are metals (a specular lobe alone, METAL_F0 colours)
@@ -191,8 +195,6 @@ class GeneratorConfig:
         return dataclasses.asdict(self)
 
 
-VOID_ALBEDO = 0.01        # walls and floor of a void scene: grey albedo in [0, VOID_ALBEDO] by default
-#                           (config void_albedo: real black cloth, velvet to felt, reflects about 1-5%)
 MIN_CAMERA_R_M = 6.0      # a camera set by view_halfwidth_m stays at least this far from the centre
 
 # Named generator presets (``relight generate --preset NAME``): overrides of the defaults.

@@ -86,7 +86,7 @@ def _backdrop_off(files: list[str]) -> list[np.ndarray]:
     from relight.imageio import load_image
     out = []
     for f in files:
-        mask_path = os.path.join(os.path.dirname(f), os.path.basename(f).split(".")[0] + ".mask.png")
+        mask_path = os.path.join(os.path.dirname(f), PHOTO_NAME.match(os.path.basename(f))["name"] + ".mask.png")
         if not os.path.exists(mask_path):
             raise DatasetError(f"{mask_path}: no mask for {os.path.basename(f)} (needed to black out the backdrop)")
         px, enc, _ = load_image(f)
@@ -216,8 +216,9 @@ def summary(scores: dict) -> dict:
     if "true_to_light_camera" in scores:
         pred, truth = scores["to_light_camera"], scores["true_to_light_camera"]
         out["follow_x_r"], out["follow_y_r"] = follows_light(pred, truth)
-        split = shading_split(pred, truth)
-        out["image_angle_deg_median"] = float(np.nanmedian(split["image_angle_deg"])) if len(pred) else float("nan")
-        out["slant_bias_deg"] = float(np.median(split["slant_error_deg"])) if len(pred) else float("nan")
-        out["slant_error_deg_median"] = float(np.median(np.abs(split["slant_error_deg"]))) if len(pred) else float("nan")
+        nan, split = float("nan"), shading_split(pred, truth)
+        slant = split["slant_error_deg"]
+        out["image_angle_deg_median"] = float(np.nanmedian(split["image_angle_deg"])) if len(slant) else nan
+        out["slant_bias_deg"] = float(np.median(slant)) if len(slant) else nan
+        out["slant_error_deg_median"] = float(np.median(np.abs(slant))) if len(slant) else nan
     return out
