@@ -6,10 +6,10 @@ is about 3x the forward FLOPs (forward + two backward products). Ratios in the l
 table are measured side by side in this run, so they hold even on a busy machine.
 
     .venv/bin/python benchmarks/bench_network.py [--res 128] [--threads 1 2] [--repeats 20]
-                                                 [--model FILE|RUN|shipped]
+                                                 [--model photo|sid2|FILE|RUN|shipped]
 
 ``--model`` times a trained model as ``relight predict`` runs it (``forward_with_kappa``,
-eval mode, batch norms folded; ``shipped``: the package's model) instead of a fresh small
+eval mode, batch norms folded; a shipped name, or ``shipped``: the default shipped model) instead of a fresh small
 network, and prints the folded / unfolded latency ratio measured alternately in the same
 run, and the latency of ``--mirror-average`` (:class:`relight.net.model.MirrorAveraged`)
 over one image's, timed the same way. The latency columns give the median and the minimum
@@ -51,8 +51,8 @@ def _network(res: int, model: str | None) -> LightNet:
     if model is None:
         torch.manual_seed(0)
         return LightNet(NetConfig(res=res))
-    from relight.net.io import SHIPPED_MODEL, load_model_file
-    return load_model_file(SHIPPED_MODEL if model == "shipped" else model)
+    from relight.net.io import load_model_file, resolve_model
+    return load_model_file(resolve_model(None if model == "shipped" else model))
 
 
 def _alternate_ratio(base, other, repeats: int) -> tuple[float, list[float]]:
@@ -113,8 +113,9 @@ def main() -> None:
     ap.add_argument("--repeats", type=at.int_in(1, 100_000, "a count"), default=20)
     ap.add_argument("--batch", type=at.batch_size, default=64, help="inference batch size")
     ap.add_argument("--train-batch", type=at.batch_size, default=16, help="training batch size (the paper's 16)")
-    ap.add_argument("--model", default=None, help="time this model file or run folder ('shipped': the "
-                    "package's model) instead of a fresh small network; its own resolution")
+    at.add_model_option(ap, default_text=False,
+                        help="time this model instead of a fresh small network, at its own resolution ('shipped': "
+                             "the default shipped model)")
     args = ap.parse_args()
     net = _network(args.res, args.model)
     params, flops = count_parameters(net), flops_per_image(net)

@@ -1,6 +1,7 @@
 """Real photographs and another renderer: the network where it was not trained.
 
-Scores one or more models (default: the shipped one) on
+Scores one or more models (default: every shipped model, ``photo`` and ``sid2``, each
+labelled by its name) on
 * ``shared/data/psm_objects``: 60 real photographs of 5 objects under 12 known lights;
 * ``shared/data/psm_spheres``: the gray (diffuse) and chrome ball photographs of the same
   12 lights (the network, beside the constant guess; the sphere procedure's own figures are
@@ -102,8 +103,8 @@ def ensure_devset(root: str, n: int) -> tuple[str | None, str | None, str | None
 def main(argv=None) -> int:
     from relight.commands import argtypes as at
     ap = at.OneLineParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--model", action="append", default=None,
-                    help="model file or run folder (repeatable; default: the shipped model)")
+    at.add_model_option(ap, action="append", default_text=False,
+                        help="repeatable (default: every shipped model present, each labelled by its name)")
     ap.add_argument("--devset", default=os.path.expanduser(os.path.join("~", "relight-data", "photo")),
                     help="folder of the Mitsuba / Cycles dev sets (made when missing)")
     ap.add_argument("--n", type=at.int_in(1, 100_000, "a count"), default=320, help="dev-set images (default 320)")
@@ -122,9 +123,11 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     from relight.errors import RelightError
     from relight.net import photos
+    from relight.net.io import SHIPPED_NAMES, shipped_model_path
     from relight.net.predict import load_model
     try:
-        models = [(m or "shipped", load_model(m)) for m in (args.model or [None])]
+        names = args.model or [n for n in SHIPPED_NAMES if os.path.isfile(shipped_model_path(n))] or [None]
+        models = [(m or "shipped", load_model(m)) for m in names]
         sets = []
         shared = photos.shared_data_dir(args.photos)
         objects = os.path.join(shared, "psm_objects")

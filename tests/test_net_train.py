@@ -256,7 +256,7 @@ def test_shipped_model_loads():
     from relight.net.io import SHIPPED_MODEL
     if not os.path.isfile(SHIPPED_MODEL):
         pytest.skip("no shipped model in this build")
-    model = load_model()
+    model = load_model("sid2")   # named: the default may be the photo model
     assert model.config.res == 128 and not model.training
 
 

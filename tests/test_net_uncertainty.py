@@ -205,7 +205,7 @@ def test_shipped_model_still_loads_without_kappa():
     import os
     if not os.path.isfile(SHIPPED_MODEL):
         pytest.skip("no shipped model")
-    model = load_model()
+    model = load_model("sid2")
     with torch.no_grad():
         y, kappa = model.forward_with_kappa(torch.rand(1, 3, model.config.res, model.config.res))
     assert y.shape == (1, 7) and (kappa is None) == (not model.has_kappa)

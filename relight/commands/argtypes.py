@@ -13,7 +13,7 @@ __all__ = [
     "spp", "max_depth", "seed", "threads", "loader_workers", "count", "limit", "columns", "epochs",
     "batch_size", "patience", "width", "iterations", "learning_rate", "seconds", "minutes", "relative_rmse",
     "light_pan", "light_tilt", "field_of_view", "object_parts",
-    "add_mirror_option", "bounded_rgb", "loss_weights",
+    "add_mirror_option", "add_model_option", "model_help", "bounded_rgb", "loss_weights",
     "circle", "OneLineParser", "run_script",
 ]
 
@@ -153,6 +153,25 @@ def add_mirror_option(parser) -> None:
     parser.add_argument("--mirror-average", action="store_true",
                         help="also run each image's left-right mirror image and average the two "
                              "predictions (lower errors, about 1.8x the time)")
+
+
+def model_help(default: bool = True) -> str:
+    """The one help text of every option that names a network: the shipped names, a file or
+    a run folder, and (``default``) what giving none means (:func:`relight.net.io.resolve_model`)."""
+    from relight.net.io import DEFAULT_MODELS, SHIPPED_NAMES
+    text = f"shipped model name ({', '.join(SHIPPED_NAMES)}) or a .safetensors file or run folder"
+    return text + (f" (default: {', else '.join(DEFAULT_MODELS)})" if default else "")
+
+
+def add_model_option(parser, flag: str = "--model", *aliases: str, default_text: bool = True, **kwargs) -> None:
+    """A ``--model`` option (or ``flag``) taking a shipped model's name or a file / run folder,
+    with the shared help text; ``kwargs`` go to ``add_argument`` (e.g. ``required=True``,
+    ``dest``), and a ``help`` there follows the shared text."""
+    extra = kwargs.pop("help", None)
+    text = model_help(default_text and not kwargs.get("required", False))
+    kwargs.setdefault("default", None)
+    kwargs.setdefault("metavar", "MODEL")
+    parser.add_argument(flag, *aliases, help=f"{text}; {extra}" if extra else text, **kwargs)
 
 
 def bounded_rgb(text: str) -> tuple[float, float, float]:

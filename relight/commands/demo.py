@@ -47,8 +47,8 @@ def cmd_demo(args) -> int:
 
     print(f"\n1/3 render {args.count} SID2-style images ({args.res} px, {args.spp} spp) -> {data}", flush=True)
     generate(data, args.count, seed=0, cfg=GeneratorConfig(res=args.res, spp=args.spp))
-    print(f"\n2/3 predict their lights with the shipped network -> {evaluation}", flush=True)
-    tables = evaluate(load_model(None), data, evaluation, split="all", model_name="shipped model")
+    print(f"\n2/3 predict their lights with the shipped sid2 network (SID2-style rooms) -> {evaluation}", flush=True)
+    tables = evaluate(load_model("sid2"), data, evaluation, split="all", model_name="sid2")
     print(metrics.format_tables(tables, only_table1=True))
     print(f"\n3/3 re-render every scene under its predicted light -> {report}", flush=True)
     predictions = os.path.join(evaluation, "predictions.json")

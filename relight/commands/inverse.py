@@ -32,7 +32,7 @@ def add_commands(sub) -> None:
     v.add_argument("--trace", default=None, help="per-iteration CSV (default: OUT with .trace.csv)")
     v.add_argument("--init", default="grid",
                    help="'grid' (coarse search, default), 'network', or a predictions file")
-    v.add_argument("--model", default=None, help="model file for --init network (default: shipped)")
+    at.add_model_option(v, help="the network of --init network")
     v.add_argument("--max-iters", type=at.iterations, default=None, help="LM iterations per image (default 60)")
     v.add_argument("--time-budget", type=at.seconds, default=None,
                    help="seconds per image (default 60)")
@@ -63,8 +63,10 @@ def cmd_invert(args) -> int:
     from relight.inverse.optimize import InverseError, InvertConfig
     from relight.predictions import write_predictions
     from relight.scene.spec import load_scene
+    from relight.net.io import SHIPPED_NAMES, shipped_model_path
     trace = args.trace or os.path.splitext(args.out)[0] + ".trace.csv"
-    inputs = [args.data, args.scene, args.image, args.model,
+    model = shipped_model_path(args.model) if args.model in SHIPPED_NAMES else args.model   # a name: its file
+    inputs = [args.data, args.scene, args.image, model,
               args.init if args.init not in ("grid", "network") else None]
     check_outputs([args.out, trace], inputs)
     if os.path.realpath(args.out) == os.path.realpath(trace):

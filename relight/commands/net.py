@@ -51,10 +51,10 @@ def add_commands(sub) -> None:
     t.add_argument("--resume", action="store_true",
                    help="continue the run in --out with changed settings (e.g. more --epochs); "
                         "re-running the identical command resumes without it")
-    t.add_argument("--init", default=None, metavar="MODEL",
-                   help="fine-tune this model file (e.g. relight/models/sid2.safetensors): its network "
-                        "and weights are the starting point (--arch/--width ignored, --res must match); "
-                        "it may not lie in --out, whose best.safetensors the run replaces (copy it out first)")
+    at.add_model_option(t, "--init", default_text=False,
+                        help="the model to fine-tune (e.g. sid2): its network and "
+                             "weights are the starting point (--arch/--width ignored, --res must match); it may "
+                             "not lie in --out, whose best.safetensors the run replaces (copy it out first)")
     t.add_argument("--images", choices=["visible", "masked"], default="visible",
                    help="MID-like datasets: train on the images as rendered (visible spheres) or on the "
                         "copies with both spheres painted out (default visible)")
@@ -80,8 +80,7 @@ def add_commands(sub) -> None:
                                    "held-out split (network frozen; vMF negative log-likelihood, early "
                                    "stopping and temperature on a part of the split kept out of the fit) "
                                    "and write the calibrated model file.")
-    c.add_argument("--model", "--run", dest="model", required=True,
-                   help="model .safetensors or training run folder (its best.safetensors)")
+    at.add_model_option(c, "--model", "--run", dest="model", required=True, help="the model whose kappa head is refitted")
     c.add_argument("--data", required=True, action="append",
                    help="dataset folder; repeat it for a model trained on several (their splits are joined)")
     c.add_argument("--split", default="val", choices=["train", "val", "test", "all"],
@@ -96,9 +95,10 @@ def add_commands(sub) -> None:
     c.set_defaults(func=cmd_calibrate)
 
     e = sub.add_parser("evaluate", help="the paper's error tables of a model on a dataset split",
-                       description="Evaluate a model (default: the shipped one) on DATA; write report.md "
+                       description="Evaluate a model (default: the shipped photo model, else sid2) on DATA; "
+                                   "write report.md "
                                    "(Tables 1-3), metrics.json, per_image.csv, predictions.json to --out.")
-    e.add_argument("--model", default=None, help="model .safetensors or run folder (default: shipped model)")
+    at.add_model_option(e)
     e.add_argument("--data", required=True, help="dataset folder")
     e.add_argument("--split", default="test", choices=["train", "val", "test", "all"],
                    help="which records (default test; 'all' for a fresh test-only dataset)")
@@ -112,7 +112,7 @@ def add_commands(sub) -> None:
     p.add_argument("images", nargs="+", help="image files or folders of images")
     p.add_argument("--camera-tilt", type=camera_tilt, default=None,
                    help="camera tilt in degrees used to decode the light tilt (default 45, the paper's)")
-    p.add_argument("--model", default=None, help="model .safetensors or run folder (default: shipped model)")
+    at.add_model_option(p)
     p.add_argument("--out", required=True, help="predictions file to write (relight.predictions/v1)")
     at.add_mirror_option(p)
     p.set_defaults(func=cmd_predict)
@@ -121,10 +121,12 @@ def add_commands(sub) -> None:
 def cmd_train(args) -> int:
     import dataclasses
     from relight.fileio import check_folder_target, check_outputs
+    from relight.net.io import SHIPPED_NAMES, resolve_model
     from relight.net.train import TrainConfig, train
-    check_outputs([args.out], [*args.data, args.init])
+    init = resolve_model(args.init) if args.init in SHIPPED_NAMES else args.init   # a name: its shipped file
+    check_outputs([args.out], [*args.data, init])
     check_folder_target(args.out)
-    cfg = TrainConfig(data_dir=tuple(args.data), init=os.path.abspath(args.init) if args.init else None,
+    cfg = TrainConfig(data_dir=tuple(args.data), init=os.path.abspath(init) if init else None,
                       image_key="image_masked" if args.images == "masked" else "image",
                       epochs=args.epochs, batch_size=args.batch_size, lr=float(args.lr),
                       res=args.res, seed=args.seed, flip=not args.no_flip, plateau_patience=args.patience,
@@ -144,10 +146,11 @@ def cmd_train(args) -> int:
 def cmd_calibrate(args) -> int:
     from relight.fileio import check_file_target, check_outputs
     from relight.net.calibrate import CalibrationConfig, calibrate_model_file
-    model_file = os.path.join(args.model, "best.safetensors") if os.path.isdir(args.model) else args.model
-    check_outputs([args.out], [*args.data, args.model, model_file])
+    from relight.net.io import resolve_model
+    model_file = resolve_model(args.model)   # a shipped name, a file or a run folder's best.safetensors
+    check_outputs([args.out], [*args.data, model_file, _given_path(args.model)])
     check_file_target(args.out)
-    rep = calibrate_model_file(args.model, args.data, args.out,
+    rep = calibrate_model_file(model_file, args.data, args.out,
                                CalibrationConfig(split=args.split, mode=args.mode, ood=args.ood), progress=True)
     if args.mode != "none":
         b, a = rep["check_before"], rep["check_after"]
@@ -164,9 +167,17 @@ def cmd_calibrate(args) -> int:
     return 0
 
 
-def _model_label(args, default: str) -> str:
-    """The model as reports name it: the --model given (else ``default``), and how it was run."""
-    return (args.model or default) + (" (mirror-averaged)" if args.mirror_average else "")
+def _model_label(args) -> str:
+    """The model as reports and predictions files name it: the shipped name it resolves to
+    (no --model: the default's), else the --model given; and how it was run."""
+    from relight.net.io import model_label
+    return model_label(args.model) + (" (mirror-averaged)" if args.mirror_average else "")
+
+
+def _given_path(model) -> str | None:
+    """The --model given when it is a path (a run folder the outputs must stay out of), else None."""
+    from relight.net.io import SHIPPED_NAMES
+    return None if model is None or model in SHIPPED_NAMES else model
 
 
 def cmd_evaluate(args) -> int:
@@ -175,12 +186,14 @@ def cmd_evaluate(args) -> int:
     from relight import metrics
     from relight.net.evaluate import evaluate
     from relight.fileio import check_folder_target, check_outputs
+    from relight.net.io import resolve_model
     from relight.net.predict import load_model
-    check_outputs([args.out], [args.data, args.model])
+    model_file = resolve_model(args.model)
+    check_outputs([args.out], [args.data, model_file, _given_path(args.model)])
     check_folder_target(args.out)
     torch.set_num_threads(1)
-    model = load_model(args.model, mirror_average=args.mirror_average)
-    name = _model_label(args, "shipped model")
+    model = load_model(model_file, mirror_average=args.mirror_average)
+    name = _model_label(args)
     tables = evaluate(model, args.data, args.out, split=args.split, model_name=name,
                       scheduler=engine.scheduler_from_args(args))
     print(metrics.format_tables(tables, only_table1=True))
@@ -203,10 +216,12 @@ def cmd_evaluate(args) -> int:
 def cmd_predict(args) -> int:
     from relight.net.predict import DEFAULT_CAMERA_TILT_DEG, list_images, load_model, predict_files
     from relight.fileio import check_file_target, check_outputs
+    from relight.net.io import resolve_model
     from relight.predictions import write_predictions
-    check_outputs([args.out], args.images + [args.model])
+    model_file = resolve_model(args.model)
+    check_outputs([args.out], args.images + [model_file, _given_path(args.model)])
     check_file_target(args.out)
-    model = load_model(args.model, mirror_average=args.mirror_average)
+    model = load_model(model_file, mirror_average=args.mirror_average)
     files = list_images(args.images)
     check_outputs([args.out], files)
     own_tilt = args.camera_tilt is None and getattr(model, "has_camera", False)
@@ -232,6 +247,6 @@ def cmd_predict(args) -> int:
               "camera_tilt_deg", "to_light_camera", "ood", "ood_score")
     entries = [{k: p[k] for k in fields if k in p} | {"file": os.path.abspath(p["file"])} for p in preds]
     meta = {"camera_tilt_deg": tilt} if tilt is not None else {"camera_tilt": "predicted per image"}
-    write_predictions(args.out, entries, model=_model_label(args, "shipped"), inputs=files, **meta)
+    write_predictions(args.out, entries, model=_model_label(args), inputs=files, **meta)
     print(f"wrote {args.out} ({len(entries)} predictions)")
     return 0

@@ -37,8 +37,8 @@ def dataset_jobs(data_dir: str, split: str = "test", limit: int | None = None) -
 
 
 def network_starts(jobs: list[Job], model_path: str | None = None) -> dict[str, tuple[float, float]]:
-    """``{id: (pan_rel_deg, tilt_deg)}`` predicted by the trained network (the shipped
-    model, or ``model_path``)."""
+    """``{id: (pan_rel_deg, tilt_deg)}`` predicted by the trained network (the default
+    shipped model, or ``model_path``: a shipped name, a file or a run folder)."""
     from relight.inverse.optimize import InverseError
     from relight.imageio import read_image
     try:

@@ -7,26 +7,97 @@ and string metadata: ``format`` (= :data:`MODEL_FORMAT`),
 :class:`~relight.net.model.NetConfig` as JSON) and ``info`` (free JSON: training
 settings, data, epoch). Anything else -- a missing file, a different format, wrong
 tensor names or shapes -- raises :class:`ModelFileError` with a one-line reason.
+
+Shipped models live in :data:`MODELS_DIR` as ``NAME.safetensors`` (with ``NAME.json``,
+``NAME_log.csv``, ``NAME_reliability.png`` and a card, written by ``scripts/ship_model.py``),
+one per name of :data:`SHIPPED_NAMES`: ``photo`` (trained for real photographs) and ``sid2``
+(relight's SID2-style synthetic rooms). :func:`resolve_model` turns what a user gives
+(``None``, a shipped name, a file or a run folder) into a model file; ``None`` means the
+first shipped name of :data:`DEFAULT_MODELS` whose file is present. This module imports no
+torch until a model is read or written (the command line's options use its names).
 """
 from __future__ import annotations
 
-__all__ = ["stored_float_dtype", 
-    "MODEL_FORMAT", "MODELS_DIR", "SHIPPED_NAME", "SHIPPED_MODEL", "save_model", "read_model_file",
-    "read_model_header", "load_model_file",
+__all__ = ["stored_float_dtype",
+    "MODEL_FORMAT", "MODELS_DIR", "SHIPPED_NAMES", "DEFAULT_MODELS", "SHIPPED_NAME", "SHIPPED_MODEL",
+    "shipped_model_path", "resolve_model", "default_model_name", "model_label", "save_model",
+    "read_model_file", "read_model_header", "load_model_file", "ModelFileError",
 ]
 
 import json
 import os
+from typing import TYPE_CHECKING
 
-import torch
-
-from relight.net.model import ARCHES, LightNet, NetConfig
 from relight.errors import ModelFileError, brief
+
+if TYPE_CHECKING:   # torch and the network load with the first model read or written
+    import torch
+
+    from relight.net.model import LightNet, NetConfig
 
 MODEL_FORMAT = "relight.model/v1"
 MODELS_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "models")
-SHIPPED_NAME = "sid2"   # the shipped model: SHIPPED_NAME.safetensors, .json, _log.csv, _reliability.png
+SHIPPED_NAMES = ("photo", "sid2")    # NAME.safetensors, NAME.json, NAME_log.csv, NAME_reliability.png
+DEFAULT_MODELS = ("photo", "sid2")   # what no --model means: the first of these that is shipped
+SHIPPED_NAME = "sid2"   # the SID2-style model (the paper's Tables 1-3); always shipped
 SHIPPED_MODEL = os.path.join(MODELS_DIR, f"{SHIPPED_NAME}.safetensors")
+
+
+def shipped_model_path(name: str) -> str:
+    """The file of shipped model ``name`` (one of :data:`SHIPPED_NAMES`) in
+    :data:`MODELS_DIR`, present or not.
+
+    >>> os.path.basename(shipped_model_path("photo"))
+    'photo.safetensors'
+    """
+    if name not in SHIPPED_NAMES:
+        raise ModelFileError(f"no shipped model is named {name!r} (shipped names: {', '.join(SHIPPED_NAMES)})")
+    return os.path.join(MODELS_DIR, f"{name}.safetensors")
+
+
+def default_model_name() -> str | None:
+    """The shipped name no ``--model`` means: the first of :data:`DEFAULT_MODELS` whose file
+    is present (``photo``, else ``sid2``); ``None`` when none is."""
+    return next((name for name in DEFAULT_MODELS if os.path.isfile(shipped_model_path(name))), None)
+
+
+def resolve_model(value: str | os.PathLike | None = None) -> str:
+    """The model file ``value`` means, or :class:`ModelFileError` with one line.
+
+    * ``None``: the default shipped model (:func:`default_model_name`: ``photo``, else ``sid2``);
+    * a shipped name (``photo``, ``sid2``): that shipped file, which must be present (a file or
+      folder of that name in the working folder is given as ``./NAME``);
+    * anything else: a ``.safetensors`` file, or a training run folder (its ``best.safetensors``).
+    """
+    if value is None:
+        name = default_model_name()
+        if name is None:
+            raise ModelFileError(f"no shipped model in {MODELS_DIR} ({' or '.join(f'{n}.safetensors' for n in DEFAULT_MODELS)}); "
+                                 "give --model FILE")
+        return shipped_model_path(name)
+    value = os.fspath(value)
+    if value in SHIPPED_NAMES:
+        path = shipped_model_path(value)
+        if not os.path.isfile(path):
+            present = [n for n in SHIPPED_NAMES if os.path.isfile(shipped_model_path(n))]
+            raise ModelFileError(f"shipped model {value!r} is not in this build ({path} is missing; "
+                                 f"shipped: {', '.join(present) or 'none'})")
+        return path
+    try:
+        return _model_path(value)
+    except ModelFileError:
+        if not os.path.exists(value) and os.sep not in value and not value.endswith(".safetensors"):
+            raise ModelFileError(f"model not found: {value!r} is neither a shipped model name "
+                                 f"({', '.join(SHIPPED_NAMES)}) nor a file or run folder") from None
+        raise
+
+
+def model_label(value: str | os.PathLike | None) -> str:
+    """How reports and predictions files name the model ``value`` means: the shipped name
+    for ``None`` (the default it resolves to) or a shipped name, else the path as given."""
+    if value is None:
+        return default_model_name() or "shipped"
+    return os.fspath(value)
 
 
 def save_model(path: str | os.PathLike, model: LightNet, info: dict | None = None,
@@ -67,6 +138,8 @@ def _model_path(path: str | os.PathLike) -> str:
 
 def _read(path: str | os.PathLike, tensors: bool) -> tuple[NetConfig, dict, dict]:
     from safetensors import SafetensorError, safe_open
+
+    from relight.net.model import ARCHES, NetConfig
     path = _model_path(path)
     try:
         with safe_open(path, framework="pt") as f:
@@ -101,6 +174,9 @@ def read_model_header(path: str | os.PathLike) -> tuple[NetConfig, dict]:
 
 def load_model_file(path: str | os.PathLike) -> LightNet:
     """Build the network of a model file, weights loaded, in eval mode."""
+    import torch
+
+    from relight.net.model import LightNet
     config, state, info = read_model_file(path)
     model = LightNet(config)
     expected = model.state_dict()
@@ -123,6 +199,7 @@ def load_model_file(path: str | os.PathLike) -> LightNet:
 
 def stored_float_dtype(path: str | os.PathLike) -> torch.dtype:
     """The floating-point type a model file stores its weights in (float16 for a shipped file)."""
+    import torch
     from safetensors import safe_open
     with safe_open(_model_path(path), framework="pt") as f:
         for key in f.keys():

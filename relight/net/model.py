@@ -397,7 +397,7 @@ class LightNet(nn.Module):
         (:func:`torch.nn.utils.fusion.fuse_conv_bn_eval`); outputs agree to float32
         rounding. The weights and inputs then go channels-last (NHWC), the layout the
         CPU convolutions run fastest in. Together: single-image latency about 0.7x,
-        batches of 64 about 0.5x (``benchmarks/bench_network.py --model shipped``). The
+        batches of 64 about 0.5x (``benchmarks/bench_network.py --model sid2``). The
         folded network has no batch norms left, so it cannot be trained or saved
         (:func:`relight.net.io.save_model` refuses it): load the file again for that.
         Returns ``self``, in eval mode.

@@ -1,4 +1,4 @@
-"""Prediction on any image with a trained model (the shipped one by default).
+"""Prediction on any image with a trained model (the default shipped one unless named).
 
 Images of any size are brought to the network's input encoding exactly as at
 training time (:func:`relight.net.data.prepare_srgb8`): linear images (EXR, or
@@ -24,7 +24,7 @@ import torch
 from relight import frames
 from relight.net.data import prepare_srgb8
 from relight.net.evaluate import decode_outputs, extra_fields, paper_y, target_frame_of
-from relight.net.io import SHIPPED_MODEL, ModelFileError, load_model_file
+from relight.net.io import ModelFileError, load_model_file, resolve_model
 
 DEFAULT_CAMERA_TILT_DEG = frames.PHOTO_CAMERA_TILT_DEG  # the paper's assumption for photographs
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".exr")
@@ -47,7 +47,7 @@ def is_achromatic(srgb8: np.ndarray, tolerance: int = ACHROMATIC_TOLERANCE) -> b
 
 
 def load_model(path: str | os.PathLike | None = None, mirror_average: bool = False):
-    """Load a model file (``None``: the shipped model) for inference: eval mode, batch
+    """Load a model (``None``: the default shipped model) for inference: eval mode, batch
     norms folded into the convolutions (:meth:`~relight.net.model.LightNet.fold_batchnorm`).
     With ``mirror_average`` each image's prediction is averaged with its mirror image's
     (:class:`~relight.net.model.MirrorAveraged`). To train, calibrate or save a model,
@@ -57,23 +57,22 @@ def load_model(path: str | os.PathLike | None = None, mirror_average: bool = Fal
     foreign file.
 
     Args:
-        path: a ``.safetensors`` model file or a training run folder; ``None``: the
-            shipped model (``relight/models/sid2.safetensors``).
+        path: a shipped model's name (``"photo"``: real photographs; ``"sid2"``:
+            relight's SID2-style renders, ``relight/models/sid2.safetensors``), a
+            ``.safetensors`` model file or a training run folder; ``None``: the default
+            shipped model, ``photo`` when it is shipped, else ``sid2``
+            (:func:`relight.net.io.resolve_model`).
         mirror_average: average each prediction with its mirror image's (about 1.8x the time).
 
     Returns:
         A :class:`~relight.net.model.LightNet` (or its mirror-averaging wrapper) in eval
         mode; ``model.config.res`` is the input size in pixels.
 
-    >>> model = load_model()
+    >>> model = load_model("sid2")
     >>> model.config.res, model.training
     (128, False)
     """
-    if path is None:
-        if not os.path.isfile(SHIPPED_MODEL):
-            raise ModelFileError(f"no shipped model at {SHIPPED_MODEL}; give --model")
-        path = SHIPPED_MODEL
-    model = load_model_file(path).fold_batchnorm()
+    model = load_model_file(resolve_model(path)).fold_batchnorm()
     if mirror_average:
         from relight.net.model import MirrorAveraged
         model = MirrorAveraged(model)
