@@ -1,17 +1,22 @@
-"""Ship a training run as the package's default model, evaluate it and write its card.
+"""Ship a training run as one of the package's named models, evaluate it and write its card.
 
-    .venv/bin/python scripts/ship_model.py --run RUN --train-data TRAIN --test-data TEST \
-        [--model CALIBRATED.safetensors] [--prior-test hsv=DIR --prior-test munsell=DIR]
+    .venv/bin/python scripts/ship_model.py [--name sid2|photo] --run RUN --train-data TRAIN \
+        --test-data TEST [--model CALIBRATED.safetensors] [--prior-test hsv=DIR --prior-test munsell=DIR]
         [--other-test mosaic=DIR ...]
 
+``--name`` (default ``sid2``) is the shipped name (:data:`relight.net.io.SHIPPED_NAMES`):
+``sid2``, the model for SID2-style synthetic rooms (``--model sid2``), or ``photo``, the
+model for real photographs and the default of ``relight predict`` / ``relight evaluate``.
+
 1. copies RUN/best.safetensors (or --model, e.g. the output of ``relight calibrate`` on
-   RUN; weights unchanged) to relight/models/sid2.safetensors with its metadata,
-   plus sid2.json and the training log sid2_log.csv;
+   RUN; weights unchanged) to relight/models/NAME.safetensors with its metadata,
+   plus NAME.json and the training log NAME_log.csv;
 2. runs ``relight evaluate`` with the shipped model on every image of TEST (a set never
    used for training) into TEST-eval/ (or --eval-out), and on each --prior-test set (a
    test set of one surface-colour prior) into EVAL-OUT-prior-NAME/, and on each --other-test set
    (other generator settings, e.g. mosaic backgrounds) into EVAL-OUT-other-NAME/;
-3. writes relight/models/MODEL_CARD.md: data, training, and the paper's Tables 1-3 next
+3. writes the card (relight/models/MODEL_CARD.md for sid2, MODEL_CARD_photo.md for photo;
+   :func:`card_file`): data, training, and the paper's Tables 1-3 next
    to ours, the colour error per prior. ``relight evaluate`` reproduces the card's
    numbers exactly. Everything the card says of the model and the data (architecture,
    input size, sampler, noise target, samples per pixel, colour prior) is read from the
@@ -35,8 +40,8 @@ sys.path.insert(0, REPO)
 from relight.dataset import read_card, read_manifest  # noqa: E402
 from relight.fileio import atomic_write, write_json, write_text  # noqa: E402
 from relight.metrics import METRICS, format_pan_where_defined  # noqa: E402
-from relight.net.io import (MODELS_DIR, SHIPPED_MODEL, SHIPPED_NAME, read_model_file,  # noqa: E402
-                            read_model_header, save_model)
+from relight.net.io import (MODELS_DIR, SHIPPED_NAME, SHIPPED_NAMES, ModelFileError,  # noqa: E402
+                            read_model_file, read_model_header, save_model)
 from relight.net.model import LightNet, PaperEncoder, count_parameters, flops_per_image  # noqa: E402
 
 SHIPPED_DTYPE = torch.float16   # the package's file at half size; it is evaluated as stored
@@ -48,6 +53,19 @@ STAGE_WORDS = {2: "Two", 3: "Three", 4: "Four", 5: "Five"}
 GENERATE_FLAGS = ("res", "spp", "target_rmse", "sampler", "colour_prior", "object_parts", "backgrounds",
                   "max_depth", "mesh_dir")
 PRESET_FLAGS = ("colour_prior", "object_parts", "light_colour")   # set by --preset sid2-paper
+
+
+def card_file(name: str) -> str:
+    """The card's file name of shipped model ``name``: ``MODEL_CARD.md`` for sid2 (the
+    name every link uses), ``MODEL_CARD_NAME.md`` for another."""
+    return "MODEL_CARD.md" if name == SHIPPED_NAME else f"MODEL_CARD_{name}.md"
+
+
+def default_sentence(name: str) -> str:
+    """The card's sentence on what the model is for (``relight.net.io.DEFAULT_MODELS``)."""
+    if name == "photo":
+        return "It is the default model of `relight predict` and `relight evaluate`."
+    return f"It is the model for SID2-style synthetic rooms: `--model {name}`."
 
 
 def _copy(src: str, dst: str) -> None:
@@ -199,34 +217,61 @@ def _stage(model: str, info: dict) -> dict:
             "train_dataset": info.get("train_dataset")}
 
 
-def earlier_stages(settings: dict) -> list[dict]:
-    """The stages before a fine-tuning run (``settings["init"]``, a model file that
-    ``relight train`` wrote), oldest first: each one's settings, best epoch, val loss and
-    training data where known. The chain follows each model's own ``--init``: a model
-    shipped by this script keeps it in its header (``stages``); one shipped before that
-    kept its first stage in the meta file beside it (``base``). ``[]`` for a run from
-    scratch."""
+def training_chain(settings: dict, name: str = SHIPPED_NAME) -> tuple[list[dict], dict | None]:
+    """``(stages, start)``: the stages before a fine-tuning run (``settings["init"]``, a
+    model file that ``relight train`` wrote), oldest first (each one's settings, best epoch,
+    val loss and training data where known), and where the oldest stage started: ``None``
+    from scratch, else ``{"model": FILE, "name": shipped name or None, "why": ...}`` for a
+    start that is not a stage of this chain. The chain follows each model's own ``--init``:
+    a model shipped by this script keeps it in its header (``stages``, ``init_from``); one
+    shipped before that kept its first stage in the meta file beside it (``base``). It stops,
+    with the start, at a model shipped under another name (e.g. a ``photo`` run fine-tuned
+    from the shipped ``sid2``: that model's own card gives its history), a file without a
+    training record, or one that is gone with no record kept. ``([], None)`` for a run
+    from scratch."""
     path = settings.get("init")
     if not path:
-        return []
-    _, info = read_model_header(path)
+        return [], None
+    try:
+        _, info = read_model_header(path)
+    except ModelFileError as exc:
+        return [], {"model": path, "name": None, "why": f"not readable here: {str(exc).splitlines()[0]}"}
+    shipped_as = info.get("name")
+    if shipped_as and shipped_as != name:
+        card = card_file(shipped_as) if shipped_as in SHIPPED_NAMES else "its card"
+        return [], {"model": path, "name": shipped_as,
+                    "why": f"the shipped `{shipped_as}` model; its training: {card}"}
     if "settings" not in info or ("epoch" not in info and "best_epoch" not in info):
-        raise SystemExit(f"{path}: the --init model has no training record (settings, epoch)")
+        return [], {"model": path, "name": None, "why": "a model file without a training record"}
     stage = _stage(path, info)
-    if info.get("stages"):
-        return list(info["stages"]) + [stage]
+    if info.get("stages") or info.get("init_from"):
+        return list(info.get("stages") or []) + [stage], info.get("init_from")
     previous = info["settings"].get("init")
     if not previous:
-        return [stage]
+        return [stage], None
     if os.path.isfile(previous):
-        return earlier_stages(info["settings"]) + [stage]
+        stages, start = training_chain(info["settings"], name)
+        return stages + [stage], start
     meta_file = os.path.splitext(path)[0] + ".json"
     meta = json.load(open(meta_file)) if os.path.isfile(meta_file) else {}
-    if meta.get("stages"):
-        return list(meta["stages"]) + [stage]
+    if meta.get("stages") or meta.get("init_from"):
+        return list(meta.get("stages") or []) + [stage], meta.get("init_from")
     if meta.get("base"):
-        return [meta["base"], stage]
-    raise SystemExit(f"{path}: the model it was fine-tuned from ({previous}) is gone and no record of it is kept")
+        return [meta["base"], stage], None
+    return [stage], {"model": previous, "name": None, "why": "gone, and no record of its training is kept"}
+
+
+def earlier_stages(settings: dict, name: str = SHIPPED_NAME) -> list[dict]:
+    """The stages of :func:`training_chain` alone."""
+    return training_chain(settings, name)[0]
+
+
+def start_option(start: dict | None) -> str | None:
+    """How the card's commands give ``--init`` for the chain's start: a shipped name
+    (``relight train --init sid2``), else the file."""
+    if not start:
+        return None
+    return start["name"] if start.get("name") in SHIPPED_NAMES else start["model"]
 
 
 def _dataset_record(path: str) -> dict:
@@ -235,9 +280,13 @@ def _dataset_record(path: str) -> dict:
             "records": len(read_manifest(path))}
 
 
-def ship(run: str, train_data, model_path: str | None = None, models_dir: str = MODELS_DIR) -> dict:
-    """Ship RUN's best model (or ``model_path``) with its record; ``train_data``: the folder
-    the run trained on, or a list of the folders it trained on together."""
+def ship(run: str, train_data, model_path: str | None = None, models_dir: str = MODELS_DIR,
+         name: str = SHIPPED_NAME) -> dict:
+    """Ship RUN's best model (or ``model_path``) as ``name`` (``sid2``, ``photo``) with its
+    record; ``train_data``: the folder the run trained on, or a list of the folders it
+    trained on together."""
+    if name not in SHIPPED_NAMES:
+        raise SystemExit(f"--name must be one of {', '.join(SHIPPED_NAMES)}, got {name!r}")
     folders = [train_data] if isinstance(train_data, str) else list(train_data)
     config, state, info = read_model_file(model_path or os.path.join(run, "best.safetensors"))
     rows = list(csv.DictReader(open(os.path.join(run, "log.csv"))))
@@ -245,7 +294,8 @@ def ship(run: str, train_data, model_path: str | None = None, models_dir: str = 
     model = LightNet(config)
     model.load_state_dict(state)
     datasets = [_dataset_record(path) for path in folders]
-    meta = {"name": SHIPPED_NAME, "arch": config.arch_name, "config": config.to_dict(),
+    stages, start = training_chain(info["settings"], name)
+    meta = {"name": name, "arch": config.arch_name, "config": config.to_dict(),
             "parameters": count_parameters(model), "gflop_per_image": flops_per_image(model) / 1e9,
             "trained_epochs_total": len(rows), "best_epoch": best, "best_val_loss": info["val_loss"],
             "train_images_per_epoch": [int(rows[0]["n_train"]), int(rows[-1]["n_train"])],
@@ -254,14 +304,15 @@ def ship(run: str, train_data, model_path: str | None = None, models_dir: str = 
             "train_dataset": datasets[0], "train_datasets": datasets if len(datasets) > 1 else None,
             "settings": info["settings"], "run": run, "kappa_temperature": info.get("kappa_temperature"),
             "kappa_calibration": info.get("kappa_calibration"), "models_dir": models_dir,
-            "stages": earlier_stages(info["settings"]), "ood": info.get("ood")}
-    save_model(os.path.join(models_dir, os.path.basename(SHIPPED_MODEL)), model,
+            "stages": stages, "init_from": start, "ood": info.get("ood")}
+    save_model(os.path.join(models_dir, f"{name}.safetensors"), model,
                {k: meta[k] for k in ("name", "best_epoch", "best_val_loss", "settings", "train_dataset",
-                                     "train_datasets", "kappa_temperature", "kappa_calibration", "stages", "ood")
+                                     "train_datasets", "kappa_temperature", "kappa_calibration", "stages",
+                                     "init_from", "ood")
                 if meta[k] not in (None, [])},
                dtype=SHIPPED_DTYPE)
-    _copy(os.path.join(run, "log.csv"), os.path.join(models_dir, f"{SHIPPED_NAME}_log.csv"))
-    write_json(os.path.join(models_dir, f"{SHIPPED_NAME}.json"), meta)
+    _copy(os.path.join(run, "log.csv"), os.path.join(models_dir, f"{name}_log.csv"))
+    write_json(os.path.join(models_dir, f"{name}.json"), meta)
     return meta
 
 
@@ -356,7 +407,7 @@ def _fine_tune_why(before: dict, after: dict, default_data: str) -> str:
             f"{before['plateau_patience'] + 1} epochs without a better val loss")
 
 
-def mirror_line(mirror_eval_dir: str | None, test_data: str) -> str:
+def mirror_line(mirror_eval_dir: str | None, test_data: str, name: str = SHIPPED_NAME) -> str:
     """The card's line for the test set evaluated with ``--mirror-average`` ("" without)."""
     if not mirror_eval_dir:
         return ""
@@ -367,7 +418,7 @@ def mirror_line(mirror_eval_dir: str | None, test_data: str) -> str:
             f"1.8x the time), mean errors: pan (tilt < 90) {_mean(o['pan'])}, tilt {o['tilt']['mean']:.2f}, direction "
             f"{o['direction']['mean']:.2f}, colour {o['colour']['mean']:.2f}"
             + (f"; the 90% cones cover {100 * cones:.1f}%" if cones is not None else "")
-            + f" (`relight evaluate --data {test_data} --split all --mirror-average --out REPORT`).\n\n")
+            + f" (`relight evaluate --model {name} --data {test_data} --split all --mirror-average --out REPORT`).\n\n")
 
 
 def ood_section(meta: dict) -> str:
@@ -385,22 +436,25 @@ def ood_section(meta: dict) -> str:
 
 def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_evals: dict | None = None,
                mirror_eval_dir: str | None = None, other_evals: dict | None = None) -> str:
-    """Write MODEL_CARD.md into the models folder and return its text; ``prior_evals``:
+    """Write the model's card (:func:`card_file` of ``meta["name"]``) into the models folder
+    and return its text; ``prior_evals``:
     ``{prior name: (test set, evaluation folder)}``; ``mirror_eval_dir``: the test set's
     evaluation with ``--mirror-average``."""
     from relight.net.model import NetConfig
     models_dir = meta.get("models_dir", MODELS_DIR)
+    name = meta.get("name", SHIPPED_NAME)
+    start = meta.get("init_from")
     ev = json.load(open(os.path.join(eval_dir, "metrics.json")))
     report = open(os.path.join(eval_dir, "report.md")).read().split("\n", 4)[-1].strip()
     if os.path.isfile(os.path.join(eval_dir, "reliability.png")):   # the cones' reliability diagram
-        _copy(os.path.join(eval_dir, "reliability.png"), os.path.join(models_dir, f"{SHIPPED_NAME}_reliability.png"))
-        report = report.replace("](reliability.png)", f"]({SHIPPED_NAME}_reliability.png)")
+        _copy(os.path.join(eval_dir, "reliability.png"), os.path.join(models_dir, f"{name}_reliability.png"))
+        report = report.replace("](reliability.png)", f"]({name}_reliability.png)")
     config = NetConfig.from_dict(meta["config"])
     res = config.res
     overall = ev["tables"]["overall"]
     s = meta["settings"]
     w = s["loss_weights"]
-    rows = list(csv.DictReader(open(os.path.join(models_dir, f"{SHIPPED_NAME}_log.csv"))))
+    rows = list(csv.DictReader(open(os.path.join(models_dir, f"{name}_log.csv"))))
     unfinished = len(rows) < int(s["epochs"])
     stages = meta.get("stages") or ([meta["base"]] if meta.get("base") else [])   # "base": cards before chains
     td = meta["train_dataset"]
@@ -408,13 +462,16 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
     td_paths = td["path"] if len(tds) == 1 else [d["path"] for d in tds]
     final_data = s.get("data_dir", td_paths)
     train_cmd_line = train_command(s, td_paths, len(rows) if unfinished else None,
-                                   init=f"STAGE{len(stages)}/best.safetensors" if stages else None)
+                                   init=f"STAGE{len(stages)}/best.safetensors" if stages else start_option(start))
     stage_text, stage_lines = "", ""
+    if start:   # where the oldest stage began: not a stage of this chain
+        stage_text = (f"- Initialised from `{start['model']}` ({start['why']}), given as "
+                      f"`--init {start_option(start)}` below.\n")
     chain = [st["settings"] for st in stages] + [s]
     for k, st in enumerate(stages, 1):
         b = st["settings"]
         cmd = train_command(b, b.get("data_dir", final_data), st["best_epoch"], out=f"STAGE{k}",
-                            init=f"STAGE{k - 1}/best.safetensors" if k > 1 else None)
+                            init=f"STAGE{k - 1}/best.safetensors" if k > 1 else start_option(start))
         loss = "" if st.get("best_val_loss") is None else f"val loss {st['best_val_loss']:.4f}, "
         head = (f"{STAGE_WORDS.get(len(chain), len(chain))} stages. Stage 1:" if k == 1 else
                 f"Stage {k} {_fine_tune_why(chain[k - 2], b, final_data)}:")
@@ -491,12 +548,18 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
         for (cmd, note), d in zip(final_lines, tds))
     splits = ("The dataset's `train` split" if n_final == 1 else
               f"The `train` splits of these {n_final} datasets, joined")
-    card = f"""# Model card: `{SHIPPED_NAME}.safetensors`
+    trained_on = ("synthetic datasets made by `relight generate` for real photographs (docs/photo.md)"
+                  if name == "photo" else "a synthetic SID2-style dataset made by `relight generate`")
+    ranges = ("" if name == "photo" else
+              "SID2 ranges: light r 20-50 m, tilt 30-90 step 5, pan step 1, CCT 2500-10000 K |Duv| <= 0.01;\n"
+              "  camera r 20 m, tilt 10-70; 1-3 objects.\n  ")
+    history = ("[docs/photo.md](../../docs/photo.md)" if name == "photo"
+               else "[docs/training.md](../../docs/training.md)")
+    card = f"""# Model card: `{name}.safetensors`
 
 The paper's regression network (Sial et al., "Light Direction and Color Estimation from
-Single Image with Deep Regression"), trained by `relight train` on a synthetic SID2-style
-dataset made by `relight generate`. It is the default model of `relight predict` and
-`relight evaluate`. This card is written by `scripts/ship_model.py`.
+Single Image with Deep Regression"), trained by `relight train` on {trained_on}.
+{default_sentence(name)} This card is written by `scripts/ship_model.py`.
 
 ## Model
 - Architecture `{meta['arch']}` (`relight/net/model.py`), an encoder of {architecture_text(config)}
@@ -507,13 +570,11 @@ dataset made by `relight generate`. It is the default model of `relight predict`
   with `relight.imageio.to_srgb8` first, like the dataset PNGs; other sizes centre-cropped to a
   square and bilinearly resized). Output: the 7-vector of `shared/conventions.md`, decoded
   with the camera tilt (photographs: 45 deg assumed, as in the paper).
-- File: safetensors (no pickle), float16 weights (loaded as float32), {os.path.getsize(os.path.join(models_dir, os.path.basename(SHIPPED_MODEL))) / 1e6:.1f} MB; metadata in its
-  header and in `{SHIPPED_NAME}.json`; training log `{SHIPPED_NAME}_log.csv`.
+- File: safetensors (no pickle), float16 weights (loaded as float32), {os.path.getsize(os.path.join(models_dir, f"{name}.safetensors")) / 1e6:.1f} MB; metadata in its
+  header and in `{name}.json`; training log `{name}_log.csv`.
 
 ## Training data
-{earlier_data}{final_data_text}- SID2 ranges: light r 20-50 m, tilt 30-90 step 5, pan step 1, CCT 2500-10000 K |Duv| <= 0.01;
-  camera r 20 m, tilt 10-70; 1-3 objects.
-  {splits} ({meta['train_images_per_epoch'][-1]} images) train{'s' if n_final == 1 else ''}, {'its `val` split drives' if n_final == 1 else 'their `val` splits drive'}
+{earlier_data}{final_data_text}- {ranges}{splits} ({meta['train_images_per_epoch'][-1]} images) train{'s' if n_final == 1 else ''}, {'its `val` split drives' if n_final == 1 else 'their `val` splits drive'}
   the scheduler and the choice of the best epoch. The paper used 45,000 images.
 
 ## Training
@@ -523,7 +584,7 @@ dataset made by `relight generate`. It is the default model of `relight predict`
   {w['pan']:g} x MSE(pan pair) + {w['tilt']:g} x MSE(tilt pair) + {w['colour']:g} x mean RGB angular error (radians).
 - {f'Stage {len(stages) + 1}: ' if stages else ''}{meta['trained_epochs_total']} epochs in {meta['train_time_s_all_epochs'] / 60:.0f} min on the 2-core CPU; best val
   loss at epoch {meta['best_epoch']} ({meta['train_time_s_to_best'] / 60:.0f} min). Learning-rate drops: {', '.join(drops) or 'none'}.{stopped}
-- The training history, stage by stage and epoch by epoch: [docs/training.md](../../docs/training.md).
+- The training history, stage by stage and epoch by epoch: {history}.
 
 ## Test results (fresh test set, never used for training)
 `{test_cmd}`{(' (' + test_note + ')') if test_note else ''}
@@ -534,7 +595,7 @@ all {ev['n']} images, errors in degrees:
 |---|---:|---:|---:|
 {table1}
 
-{pan_line}{mirror_line(mirror_eval_dir, test_data)}Paper Table 2 (tilt levels) and Table 3 (pan levels, tilt 30-70) next to ours (means;
+{pan_line}{mirror_line(mirror_eval_dir, test_data, name)}Paper Table 2 (tilt levels) and Table 3 (pan levels, tilt 30-70) next to ours (means;
 paper columns first):
 
 | Level | Paper pan | Paper tilt | Paper dir. | Paper colour | Pan (tilt < 90) | Tilt | Dir. | Colour | Zenith left out | n |
@@ -553,21 +614,24 @@ Full report of `relight evaluate`:
 ```
 {"".join(cmd + chr(10) for cmd, _ in data_lines)}{test_cmd}
 {stage_lines}{train_cmd_line}
-{calibrate_line}.venv/bin/python scripts/ship_model.py --run RUN{''.join(f" --train-data {d['path']}" for d in tds)} --test-data {test_data}{ship_extra} --notes NOTES.md
+{calibrate_line}.venv/bin/python scripts/ship_model.py{'' if name == SHIPPED_NAME else f' --name {name}'} --run RUN{''.join(f" --train-data {d['path']}" for d in tds)} --test-data {test_data}{ship_extra} --notes NOTES.md
 ```
 (`bash scripts/make_sid2.sh` makes the SID2-scale sets of one-colour objects and `bash
 scripts/train_sid2.sh ARCH` trains on them; `bash scripts/make_sid2_parts.sh` makes those of
 multi-coloured objects and `bash scripts/train_sid2p.sh` fine-tunes on them; all resumably.)
-`relight evaluate --data {test_data} --split all --out REPORT` with the shipped model
+`relight evaluate --model {name} --data {test_data} --split all --out REPORT`
 reproduces the tables above exactly (inference is deterministic). Training on a CPU is
 repeatable in its settings, not bit for bit (thread scheduling).
 """
-    write_text(os.path.join(models_dir, "MODEL_CARD.md"), card)
+    write_text(os.path.join(models_dir, card_file(name)), card)
     return card
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--name", choices=SHIPPED_NAMES, default=SHIPPED_NAME,
+                    help="the shipped name: sid2 (SID2-style synthetic rooms; the default) or photo (real "
+                         "photographs, the default model of relight predict and evaluate)")
     ap.add_argument("--run", required=True, help="training run folder (relight train --out)")
     ap.add_argument("--train-data", required=True, action="append",
                     help="the run's training dataset folder (repeat it, in the run's order, for a run "
@@ -596,11 +660,11 @@ def main() -> int:
         return out
     prior_tests = named_folders(args.prior_test, "--prior-test")
     other_tests = named_folders(args.other_test, "--other-test")
-    meta = ship(args.run, args.train_data, args.model, args.models_dir)
+    meta = ship(args.run, args.train_data, args.model, args.models_dir, args.name)
     eval_out = args.eval_out or args.test_data.rstrip("/") + "-eval"
     from relight.net.evaluate import evaluate
     from relight.net.predict import load_model
-    shipped = load_model(os.path.join(args.models_dir, os.path.basename(SHIPPED_MODEL)))
+    shipped = load_model(os.path.join(args.models_dir, f"{args.name}.safetensors"))
     evaluate(shipped, args.test_data, eval_out, split="all", model_name="shipped model")
     from relight.net.model import MirrorAveraged
     mirror_out = f"{eval_out.rstrip('/')}-mirror"

@@ -289,3 +289,61 @@ def test_card_of_a_run_on_two_folders(ship_model, world, tmp_path, monkeypatch, 
     assert row.endswith(f"| {overall['pan_all']['mean']:.2f} |")
     assert f"--other-test munsell={other} " in card
     assert f"- munsell: `relight generate --count 4 --out {other} --seed 23 " in card
+
+
+def test_ship_as_photo_writes_its_own_files_and_card(ship_model, world, tmp_path, monkeypatch, capsys):
+    """``--name photo`` (a dry run into --models-dir): photo.safetensors, photo.json,
+    photo_log.csv, photo_reliability.png and MODEL_CARD_photo.md, nothing of sid2's; the card
+    names photo as the default model. Its run was fine-tuned from a shipped sid2 model, a file
+    that is not a stage of its own chain: the card says it was initialised from that file and
+    gives ``--init sid2``; a start file without any training record is said as such too."""
+    from conftest import untrained_model
+    from relight.net.io import read_model_header
+    from relight.net.train import TrainConfig, train
+
+    def ship(run, models, *extra):
+        monkeypatch.setattr(sys, "argv", ["ship_model.py", *extra, "--run", str(run), "--train-data",
+                                          str(world / "train"), "--test-data", str(world / "test"),
+                                          "--eval-out", str(tmp_path / "ev"), "--models-dir", str(models)])
+        assert ship_model.main() == 0
+        capsys.readouterr()
+
+    ship(world / "run", tmp_path / "sid2models")              # a shipped sid2 to start from
+    sid2 = tmp_path / "sid2models" / "sid2.safetensors"
+    torch.manual_seed(0)
+    train(TrainConfig(data_dir=str(world / "train"), epochs=1, res=RES, batch_size=4, train_split="all",
+                      val_split="all", lr=2e-5, init=str(sid2)), tmp_path / "photo-run", progress=False)
+    models = tmp_path / "models"
+    ship(tmp_path / "photo-run", models, "--name", "photo")
+    names = sorted(os.listdir(models))
+    assert {"photo.safetensors", "photo.json", "photo_log.csv", "MODEL_CARD_photo.md"} <= set(names)
+    assert not any(n.startswith("sid2") for n in names) and "MODEL_CARD.md" not in names
+    assert ("photo_reliability.png" in names) == os.path.isfile(tmp_path / "ev" / "reliability.png")
+    assert read_model_header(str(models / "photo.safetensors"))[1]["name"] == "photo"
+    meta = json.load(open(models / "photo.json"))
+    assert meta["name"] == "photo" and meta["stages"] == []
+    assert meta["init_from"] == {"model": str(sid2), "name": "sid2",
+                                 "why": "the shipped `sid2` model; its training: MODEL_CARD.md"}
+    card = (models / "MODEL_CARD_photo.md").read_text()
+    assert card.startswith("# Model card: `photo.safetensors`")
+    assert "It is the default model of `relight predict` and `relight evaluate`." in card
+    assert "SID2-style synthetic rooms" not in card and "sid2.json" not in card
+    assert f"- Initialised from `{sid2}` (the shipped `sid2` model" in card
+    reproduce = card.split("## Reproduce")[1]
+    run_cmd = next(line for line in reproduce.splitlines() if "--out RUN" in line)
+    assert "--init sid2 " in run_cmd and "STAGE" not in reproduce
+    assert "scripts/ship_model.py --name photo --run RUN" in reproduce
+    assert "relight evaluate --model photo --data" in card
+    # the sid2 card of the same script says what sid2 is for
+    sid2_card = (tmp_path / "sid2models" / "MODEL_CARD.md").read_text()
+    assert "It is the model for SID2-style synthetic rooms: `--model sid2`." in sid2_card
+    assert "default model of" not in sid2_card
+    # a start with no training record at all (an untrained file): said, not an error
+    bare = untrained_model(tmp_path / "bare.safetensors", res=RES)
+    torch.manual_seed(0)
+    train(TrainConfig(data_dir=str(world / "train"), epochs=1, res=RES, batch_size=4, train_split="all",
+                      val_split="all", init=bare), tmp_path / "bare-run", progress=False)
+    ship(tmp_path / "bare-run", tmp_path / "models-bare", "--name", "photo")
+    card = (tmp_path / "models-bare" / "MODEL_CARD_photo.md").read_text()
+    assert f"- Initialised from `{bare}` (a model file without a training record)" in card
+    assert f"--init {bare} " in card
