@@ -152,7 +152,8 @@ def main(argv=None) -> int:
     ap.add_argument("--data", default=os.path.join("~", "relight-data", "inv_bench"),
                     help="dataset folder (made when missing; default ~/relight-data/inv_bench)")
     ap.add_argument("--n", type=at.int_in(1, 100_000, "a count"), default=10, help="images (first N of the manifest, all splits)")
-    at.add_model_option(ap, help="the network's single shot")
+    at.add_model_option(ap, default_text=False, default="sid2",
+                        help="the network's single shot (default sid2: the set is relight's SID2-style rooms)")
     ap.add_argument("--out-dir", default="/tmp/bench_inverse", help="predictions, traces and the plot")
     ap.add_argument("--plot-n", type=at.int_in(0, 100_000, "a count"), default=3, help="images in the convergence plot")
     ap.add_argument("--grad-n", type=at.int_in(0, 100_000, "a count"), default=3, help="images in the gradient study (0: skip)")
