@@ -557,3 +557,88 @@ def test_chrome_outline_follows_the_outermost_edges(half_angle_deg, depth_px):
         assert math.dist(outer[:2], true[:2]) < 0.15 and abs(outer[2] - true[2]) < 0.15
     else:
         assert math.dist(outer[:2], true[:2]) < 0.05 and abs(outer[2] - true[2]) < 0.05
+
+
+# ------------------------------------------------------------------ a mirror of a bright room in 8-bit
+def _bright_room(s):
+    """A bright room around the sphere: reflected directions toward the camera's side lit in
+    wedges (0.08 / 0.32), the rest 0.2: the mirror's median is about a third of the clip level."""
+    r = s["reflect"]
+    wedges = np.sin(5.0 * np.arctan2(r[..., 1], r[..., 0])) > -0.3
+    return np.where(r[..., 2] > -0.2, np.where(wedges, 0.32, 0.08), 0.2)
+
+
+def test_a_mirror_of_a_bright_room_whose_highlight_clips_is_chrome():
+    # in 8-bit the highlight clips at 1 and the mirror's median is about a third of that: the
+    # contrast reads about 3, below CHROME_MIN_CONTRAST whatever the light's brightness; with
+    # the clip level known the clipped highlight's contrast is a lower bound, and it is chrome
+    cam = pg.Camera.from_fov(128, 96, FOV_DEG)
+    sphere = _sphere_at(cam, 64.0, 48.0, 8.0)
+    image = _quantise(_render(cam, sphere, np.array([0.3, 0.4, 0.87]), extra=_bright_room, background=0.5))
+    blind = detect.sphere_features(image, cam, sphere)
+    assert blind["contrast"] < detect.CHROME_MIN_CONTRAST and not detect.is_chrome(blind)   # the problem
+    f = detect.sphere_features(image, cam, sphere, clip_level=1.0)
+    assert f["clipped"] and f["clip_contrast"] >= detect.CHROME_MIN_CLIPPED_CONTRAST
+    assert detect.is_chrome(f)
+    # a diffuse ball, lit to clip on its bright side, stays diffuse: its bright region is its lit side
+    ys, xs = np.mgrid[0:96, 0:128] + 0.5
+    s = pg.surface(cam, sphere, xs, ys)
+    shade = np.clip(s["normal"] @ (np.array([0.7, -0.4, 0.6]) / np.linalg.norm([0.7, -0.4, 0.6])), 0, None)
+    ball = _quantise(np.repeat(np.where(s["hit"], np.clip(0.1 + 1.6 * shade, 0, 1), 0.5)[..., None], 3, -1))
+    g = detect.sphere_features(ball, cam, sphere, clip_level=1.0)
+    assert g["clipped"] and not detect.is_chrome(g)
+
+
+def test_a_clipped_highlight_proposes_its_circles_when_the_proposals_overflow(monkeypatch):
+    # strong-edged discs win the Hough votes and a dark disc with one bright, unclipped pixel
+    # wins the one brightest-spot place; a faint bright disc (a mirror of a bright room) holding
+    # a small clipped spot reads a contrast of about 2 and gets a place only among those holding
+    # a compact clipped spot
+    ys, xs = np.mgrid[0:96, 0:128] + 0.5
+    img = np.full((96, 128), 0.3)
+    discs = [(22, 22, 12), (64, 22, 12), (106, 22, 12), (22, 72, 12)]
+    for cx, cy, r in discs:
+        img[np.hypot(xs - cx, ys - cy) < r] = 0.8
+    dark = (106.5, 72.5, 9.0)
+    img[np.hypot(xs - dark[0], ys - dark[1]) < dark[2]] = 0.22
+    img[71, 105] = 0.9
+    faint = (64.5, 72.5, 9.0)
+    img[np.hypot(xs - faint[0], ys - faint[1]) < faint[2]] = 0.4
+    img[70:72, 62:64] = 1.0
+    image = np.repeat(np.clip(ndimage.gaussian_filter(img, 0.5), 0, 1)[..., None], 3, -1)
+    image[70:72, 62:64] = 1.0          # clipped in every channel
+    monkeypatch.setattr(detect, "MAX_CANDIDATES", len(discs) + 1)
+    monkeypatch.setattr(detect, "SPOT_PROPOSALS", 1)
+    monkeypatch.setattr(detect, "CLIPPED_SPOT_PROPOSALS", 1)
+
+    def found(circles, circle):
+        return any(math.dist(c[:2], circle[:2]) < 3 for c in circles)
+    cam = pg.Camera.from_fov(128, 96, FOV_DEG)
+    smoothed = detect._edge_image(image)
+    old = detect.hough_circles(image)
+    assert found(old, dark) and not found(old, faint)        # the problem
+    new = detect.hough_circles(image, 1.0, lambda c: detect._screen(smoothed, cam, *c)[0])
+    assert found(new, dark) and found(new, faint)
+
+
+def test_a_circle_chrome_only_by_the_clip_allowance_around_a_sphere_goes():
+    # a large circle around a chrome sphere holds its clipped highlight and, on a bright
+    # background, passes the chrome test only by the clipped allowance: the better supported
+    # sphere inside stays, the circle goes (one with the full contrast, or better supported, stays)
+    sphere = {"circle": (50.0, 50.0, 18.0), "edge_support": 0.43, "chrome": True, "contrast": 2.7}
+    around = {"circle": (62.0, 60.0, 40.0), "edge_support": 0.27, "chrome": True, "contrast": 3.8}
+    out = detect._drop_clipped_surroundings([sphere, around])
+    assert any(c is sphere for c in out) and not any(c is around for c in out)
+    bright = dict(around, contrast=6.0)
+    assert any(c is bright for c in detect._drop_clipped_surroundings([sphere, bright]))
+    better = dict(around, edge_support=0.5)
+    assert any(c is better for c in detect._drop_clipped_surroundings([sphere, better]))
+
+
+def test_the_chrome_pick_reads_a_clipped_highlight_contrast_as_a_lower_bound():
+    # two candidates alike but for the contrast: the one whose highlight clips reads 2.7 over
+    # its median but is at least 3.3 (the clip level over the median), more than the other's 3.0
+    base = {"edge_support": 0.4, "chrome": True, "highlight": -1.0, "residual": 0.5}
+    clipped = dict(base, circle=(20.0, 20.0, 15.0), contrast=2.7, clip_contrast=3.3)
+    plain = dict(base, circle=(80.0, 20.0, 15.0), contrast=3.0)
+    assert detect.pick_sphere([plain, clipped], "chrome") is clipped

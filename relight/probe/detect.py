@@ -10,7 +10,8 @@ are faint; the robust fit and the strength threshold leave those out.
 
 Detection: OpenCV's Hough transform proposes circles; each is refined as above and scored
 by the share of its outline that has an edge (``edge_support``); a mirror sphere shows a
-compact highlight many times brighter than its median, a diffuse sphere none, and its
+compact highlight many times brighter than its median (or clipping, in an image that clips:
+then its contrast is only a lower bound), a diffuse sphere none, and its
 pixels fit a diffuse shading model (second-order spherical harmonics of the normal, which
 hold any Lambertian sphere to a few percent, or one light plus ambient, which follows a
 hard terminator).
@@ -20,8 +21,8 @@ from __future__ import annotations
 __all__ = [
     "EDGE_SIGMA_PX", "EDGE_SIGMA_MAX_PX", "EDGE_NOISE_LEFT", "edge_sigma_px", "image_noise", "EDGE_ANGLES", "EDGE_MIN_FRACTION", "REJECT_ROUNDS", "REJECT_SIGMAS", "REJECT_MIN_PX",
     "EDGE_INLIER_PX", "SUPPORT_BAND_FRACTION", "MIN_EDGE_SUPPORT", "MIN_RADIUS_FRACTION",
-    "MAX_RADIUS_FRACTION", "MAX_CANDIDATES", "SPOT_PROPOSALS", "CHROME_MIN_CONTRAST",
-    "CHROME_MAX_BLOB_FRACTION", "CHROME_MIN_EXCESS", "DIFFUSE_MAX_RESIDUAL", "TRIM_FRACTION",
+    "MAX_RADIUS_FRACTION", "MAX_CANDIDATES", "SPOT_PROPOSALS", "CLIPPED_SPOT_PROPOSALS", "CHROME_MIN_CONTRAST",
+    "CHROME_MAX_BLOB_FRACTION", "CHROME_MIN_EXCESS", "CHROME_MIN_CLIPPED_CONTRAST", "CLIP_FRACTION", "DIFFUSE_MAX_RESIDUAL", "TRIM_FRACTION",
     "read_probe_image", "load_mask", "edge_points", "refine_sphere", "sphere_features", "hough_circles",
     "find_spheres", "is_chrome", "is_diffuse", "pick_sphere",
     "outline_fit_px", "constrained_refinement", "GROW_RADII", "GROW_MIN_SUPPORT_RATIO", "GROW_ROUNDS",
@@ -58,6 +59,7 @@ MIN_RADIUS_FRACTION = 0.015    # ... and 1.5% of the image's shorter side
 MAX_RADIUS_FRACTION = 0.45
 MAX_CANDIDATES = 60
 SPOT_PROPOSALS = 20            # ... of which the last 20: the rest's circles with the most highlight-like spot
+CLIPPED_SPOT_PROPOSALS = 20    # ... and in a clipping image as many again holding a compact clipped spot
 GROW_RADII = (1.2, 1.4)         # a chrome candidate: larger concentric outlines tried ...
 GROW_MIN_SUPPORT_RATIO = 0.8   # ... and kept with at least 80% of its edge support,
 GROW_ROUNDS = 3                # ... again from the larger one, up to three times
@@ -67,6 +69,12 @@ PICK_HIGHLIGHT_WEIGHT = 0.1    # choosing the chrome sphere: per unit of highlig
 PICK_RADIUS_WEIGHT = 0.1       # ... and per unit of log radius (a chrome sphere's reflections are smaller circles)
 RADIUS_HYPOTHESES = (1.0, 0.85, 1.15)  # a Hough circle's radius is often off on a chrome sphere's faint rim
 CHROME_MIN_CONTRAST = 4.0      # chrome: brightest / median sphere pixel at least this,
+CHROME_MIN_CLIPPED_CONTRAST = 2.0  # ... or, when its brightest pixel clips (the contrast then is only a lower
+                               # bound: a mirror of a bright room reads 1 / 0.32 = 3.1 at most in 8-bit), the
+                               # clip level at least twice the median (most of it below half the spot, the
+                               # level the blob test below reads),
+CLIP_FRACTION = 0.999          # a pixel clips when every channel is within 0.1% of the clip level (an 8-bit
+                               # code of 254 decodes to 0.991)
 CHROME_MAX_BLOB_FRACTION = 0.15  # in a bright region covering at most 15% of the sphere (not a lit side),
 CHROME_MIN_EXCESS = 0.15       # above what one light on a diffuse sphere gives,
 CHROME_MIN_RESIDUAL = 0.25     # and no smooth shading model fits it (it mirrors its surroundings: a
@@ -297,16 +305,24 @@ def _edge_support(camera: Camera, sphere: Sphere, x, y) -> float:
     return float((np.abs(_outline_distance(camera, sphere, x, y)) <= EDGE_INLIER_PX).sum() / EDGE_ANGLES)
 
 
-def sphere_features(image: np.ndarray, camera: Camera, sphere: Sphere) -> dict:
+def sphere_features(image: np.ndarray, camera: Camera, sphere: Sphere, clip_level: float | None = None) -> dict:
     """Figures telling a chrome from a diffuse sphere: ``contrast`` (99.9th percentile over
     median luminance of the sphere's pixels) and ``residual`` (rms misfit, over the mean
     luminance, of the better of two diffuse shading models: second-order spherical
-    harmonics of the normal, and one light plus ambient)."""
-    (x0, y0, x1, y1), usable, s = sphere_pixels(camera, sphere, rim_exclude_px=1.5)
-    usable &= s["cos_view"] >= 0.45
+    harmonics of the normal, and one light plus ambient).
+
+    With the image's ``clip_level`` (8-bit files: 1.0): ``clipped``, whether a pixel of the
+    sphere clips in every channel (:data:`CLIP_FRACTION`), the rim included up to 1.5 px
+    from the outline (a light behind the sphere puts its highlight there, outside the
+    pixels the other figures read), and ``clip_contrast``, the clip level over the median
+    luminance: a clipped highlight's contrast is at least that, whatever it really is."""
+    (x0, y0, x1, y1), inner, s = sphere_pixels(camera, sphere, rim_exclude_px=1.5)
+    usable = inner & (s["cos_view"] >= 0.45)
     if usable.sum() < 30:
-        return {"contrast": 0.0, "residual": 1.0, "mean": 0.0}
-    lum = np.asarray(image, np.float64)[y0:y1, x0:x1, :3].mean(-1)[usable]
+        return {"contrast": 0.0, "residual": 1.0, "mean": 0.0, "clipped": False, "clip_contrast": 0.0}
+    crop = np.asarray(image, np.float64)[y0:y1, x0:x1, :3]
+    clipped = clip_level is not None and bool((crop[inner].min(-1) >= CLIP_FRACTION * clip_level).any())
+    lum = crop.mean(-1)[usable]
     n = s["normal"][usable]
     x, y, z = n[:, 0], n[:, 1], n[:, 2]
     design = np.stack([np.ones_like(x), x, y, z, x * y, x * z, y * z, x * x - y * y, 3 * z * z - 1], 1)
@@ -331,8 +347,10 @@ def sphere_features(image: np.ndarray, camera: Camera, sphere: Sphere) -> dict:
         blob = int(sizes[spot])
         in_blob = (labels == spot)[usable]
         excess = float(np.sum(lum[in_blob] - lambert[in_blob]) / max(np.sum(lum[in_blob]), 1e-12))
+    clip_contrast = float(clip_level / max(np.median(lum), 1e-6)) if clipped else 0.0
     return {"contrast": contrast, "residual": resid, "mean": mean, "blob_pixels": blob,
-            "blob_fraction": blob / float(usable.sum()), "blob_excess": excess}
+            "blob_fraction": blob / float(usable.sum()), "blob_excess": excess, "clipped": clipped,
+            "clip_contrast": clip_contrast}
 
 
 def _trimmed_rms(r: np.ndarray) -> float:
@@ -370,13 +388,24 @@ def _lambert_fit(normals: np.ndarray, lum: np.ndarray, samples: int = 1500) -> t
     return best, model(best_p, normals) @ coef
 
 
-def hough_circles(image: np.ndarray) -> list[tuple[float, float, float]]:
+def hough_circles(image: np.ndarray, clip_level: float | None = None, screen=None
+                  ) -> list[tuple[float, float, float]]:
     """Circle candidates ``(cx, cy, r)`` in pixels (pixel-centre convention) from three
     OpenCV Hough transforms (gradient-orientation: few, well-shaped circles; classic:
     more, looser; classic with a finer blur and fewer votes: small circles), taken in
     turns by each one's rank, near-duplicates merged, at most :data:`MAX_CANDIDATES`
     (the last :data:`SPOT_PROPOSALS` of them, when there are more, chosen by the
-    brightest spot inside over the median)."""
+    brightest spot inside over the median).
+
+    With the image's ``clip_level`` and a ``screen`` (a circle's score: how much of it is
+    an edge), up to :data:`CLIPPED_SPOT_PROPOSALS` more go to the circles holding a compact
+    clipped spot (a connected region of pixels clipping in every channel, wholly inside the
+    circle, at most :data:`CHROME_MAX_BLOB_FRACTION` of its area), which the brightest-spot
+    order misses: a clipped spot's contrast is only a lower bound (in 8-bit a mirror of a
+    bright room reads about 3 at most, while a circle on a dark patch holding one bright
+    pixel reads far more), and a light behind the sphere puts its highlight at the rim,
+    outside the 80% of the radius read. Each such spot's circles (the best screened first)
+    take turns, so that no one bright patch's many circles crowd out the others'."""
     import cv2
     img = np.asarray(image, np.float64)[..., :3]
     gray = np.round(_encoded(img * _exposure(img)) @ np.array([0.299, 0.587, 0.114]) * 255).astype(np.uint8)
@@ -417,19 +446,48 @@ def hough_circles(image: np.ndarray) -> list[tuple[float, float, float]]:
         v = lum[y0:y1, x0:x1][inside]
         return float(v.max() / max(np.median(v), 1e-6)) if v.size >= 8 else 0.0
     rest = sorted(found[keep:], key=spot, reverse=True)
-    return found[:keep] + rest[:SPOT_PROPOSALS]
+    if clip_level is None or screen is None:
+        return found[:keep] + rest[:SPOT_PROPOSALS]
+    taken, rest = rest[:SPOT_PROPOSALS], rest[SPOT_PROPOSALS:]
+    labels, _ = ndimage.label(img.min(-1) >= CLIP_FRACTION * clip_level, np.ones((3, 3)))
+    sizes = np.bincount(labels.ravel())
+    by_spot: dict[int, list] = {}
+    for c in rest:
+        x0, x1 = max(int(c[0] - c[2]), 0), min(int(c[0] + c[2]) + 1, w)
+        y0, y1 = max(int(c[1] - c[2]), 0), min(int(c[1] + c[2]) + 1, h)
+        inside = np.hypot(xs[y0:y1, x0:x1] - c[0], ys[y0:y1, x0:x1] - c[1]) < c[2]
+        held = np.bincount(labels[y0:y1, x0:x1][inside], minlength=sizes.size)
+        for spot_label in np.nonzero((held == sizes) & (sizes <= CHROME_MAX_BLOB_FRACTION * math.pi * c[2] ** 2))[0]:
+            if spot_label:
+                by_spot.setdefault(int(spot_label), []).append(c)
+    turns = [sorted(cs, key=screen, reverse=True) for _, cs in sorted(by_spot.items(), key=lambda kv: sizes[kv[0]])]
+    chosen: list = []
+    for rank in range(max((len(t) for t in turns), default=0)):
+        for t in turns:
+            if len(chosen) < CLIPPED_SPOT_PROPOSALS and rank < len(t) and not any(t[rank] is c for c in chosen):
+                chosen.append(t[rank])
+    return found[:keep] + taken + chosen
 
 
-def find_spheres(image: np.ndarray, camera: Camera) -> list[dict]:
+def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = None) -> list[dict]:
     """Refined sphere candidates with their features: ``sphere``, ``edge_support``,
     ``contrast``, ``residual``, ``chrome`` and ``diffuse`` (bool), best supported first.
     Of candidates of one kind and similar radius within half a radius of each other the
     best supported stays (:func:`_merge_candidate`); so does no circle lying inside a better
-    supported one (a highlight or a reflection)."""
+    supported one (a highlight or a reflection). ``clip_level``: the image's (1.0 for an
+    integer file, None for a linear one that does not clip): a clipped highlight's contrast
+    is then read as a lower bound (:func:`hough_circles`, :func:`sphere_features`)."""
     smoothed = _edge_image(image)
     out: list[dict] = []
     refined: list[tuple] = []
-    for cx, cy, r in hough_circles(image):
+
+    def screen(c):
+        try:
+            return _screen(smoothed, camera, *c)[0]
+        except ProbeError:
+            return -1
+    proposals = hough_circles(image) if clip_level is None else hough_circles(image, clip_level, screen)
+    for cx, cy, r in proposals:
         # Hough circles near one already refined to the same place add nothing
         if any(math.hypot(cx - c[0], cy - c[1]) < 0.05 * r and abs(r - c[2]) < 0.05 * r for c in refined):
             continue
@@ -441,12 +499,9 @@ def find_spheres(image: np.ndarray, camera: Camera) -> list[dict]:
         screened = []
         for k in RADIUS_HYPOTHESES:
             try:
-                trial = sphere_from_circle(camera, cx, cy, r * k)
+                screened.append((*_screen(smoothed, camera, cx, cy, r * k), r * k))
             except ProbeError:
                 continue
-            x, y, _ = edge_points(smoothed, camera, trial, max(4.0, SUPPORT_BAND_FRACTION * r * k), prior=False)
-            screened.append((int((np.abs(_outline_distance(camera, trial, x, y)) <= max(2.0, 0.05 * r * k)).sum()),
-                             trial, r * k))
         if not screened:
             continue
         # every radius that passes the screen is refined: the screen keeps the proposed
@@ -465,10 +520,10 @@ def find_spheres(image: np.ndarray, camera: Camera) -> list[dict]:
                 continue
             circle = outline_circle(camera, sphere)
             refined.append(circle)
-            f = sphere_features(image, camera, sphere)
+            f = sphere_features(image, camera, sphere, clip_level)
             out = _merge_candidate(out, {"sphere": sphere, "circle": circle, "edge_support": support, **f,
                                          "chrome": is_chrome(f), "diffuse": is_diffuse(f)})
-    out = [_outermost_outline(image, camera, c, smoothed) if c["chrome"] else c for c in out]
+    out = [_outermost_outline(image, camera, c, smoothed, clip_level) if c["chrome"] else c for c in out]
     for c in out:     # does its brightest spot look like a small light's highlight?
         c["highlight"] = highlight_likelihood(image, camera, c["sphere"]) if c["chrome"] else -10.0
     # a circle inside a better supported one is a highlight or a reflection on that sphere
@@ -478,8 +533,33 @@ def find_spheres(image: np.ndarray, camera: Camera) -> list[dict]:
         o is not c and c["circle"][2] < o["circle"][2]
         and math.hypot(c["circle"][0] - o["circle"][0], c["circle"][1] - o["circle"][1])
         + c["circle"][2] < o["circle"][2] * 1.1 and o["edge_support"] >= c["edge_support"] - 0.02 for o in out)]
+    out = _drop_clipped_surroundings(out)
     out.sort(key=lambda c: -c["edge_support"])
     return out
+
+
+def _drop_clipped_surroundings(out: list[dict]) -> list[dict]:
+    """``out`` without the circles that are chrome only by the clipped highlight's allowance
+    (their contrast below :data:`CHROME_MIN_CONTRAST`) and hold a better supported chrome
+    circle (mostly inside: reaching at most 10% of the larger radius beyond it): on a bright
+    background any circle drawn around a clipped highlight passes that allowance, so such a
+    circle is the smaller sphere's surroundings."""
+    def holds(c, o):
+        return (o is not c and o["chrome"] and o["circle"][2] < c["circle"][2]
+                and o["edge_support"] > c["edge_support"]
+                and math.hypot(c["circle"][0] - o["circle"][0], c["circle"][1] - o["circle"][1]) + o["circle"][2]
+                < c["circle"][2] * 1.1)
+    return [c for c in out if not (c["chrome"] and c["contrast"] < CHROME_MIN_CONTRAST
+                                   and any(holds(c, o) for o in out))]
+
+
+def _screen(smoothed: np.ndarray, camera: Camera, cx: float, cy: float, r: float) -> tuple[int, Sphere]:
+    """A circle's cheap screen: on how many radial lines the strongest edge within
+    :data:`SUPPORT_BAND_FRACTION` of the radius (at least 4 px) lies within 5% of the radius
+    (at least 2 px) of it; and its sphere (ProbeError when it has none)."""
+    trial = sphere_from_circle(camera, cx, cy, r)
+    x, y, _ = edge_points(smoothed, camera, trial, max(4.0, SUPPORT_BAND_FRACTION * r), prior=False)
+    return int((np.abs(_outline_distance(camera, trial, x, y)) <= max(2.0, 0.05 * r)).sum()), trial
 
 
 def _merge_candidate(out: list[dict], cand: dict) -> list[dict]:
@@ -496,7 +576,8 @@ def _merge_candidate(out: list[dict], cand: dict) -> list[dict]:
     return [c for c in out if not any(c is d for d in same)] + [cand]
 
 
-def _outermost_outline(image: np.ndarray, camera: Camera, cand: dict, smoothed: np.ndarray) -> dict:
+def _outermost_outline(image: np.ndarray, camera: Camera, cand: dict, smoothed: np.ndarray,
+                       clip_level: float | None = None) -> dict:
     """A chrome candidate's outline is the outermost circular edge around it: a mirror
     sphere's reflections (the horizon of a floor, a window, a bright wall) draw smaller,
     often stronger, near-concentric circles inside it, and its rim is faint where it
@@ -514,7 +595,7 @@ def _outermost_outline(image: np.ndarray, camera: Camera, cand: dict, smoothed: 
         best = grown
     sphere = outer_rim_fit(smoothed, camera, best["sphere"])
     if sphere is not best["sphere"]:
-        f = sphere_features(image, camera, sphere)
+        f = sphere_features(image, camera, sphere, clip_level)
         if is_chrome(f):
             best = {**best, **f, "sphere": sphere, "circle": outline_circle(camera, sphere), "chrome": True,
                     "diffuse": is_diffuse(f)}
@@ -570,7 +651,10 @@ def outer_rim_fit(smoothed: np.ndarray, camera: Camera, sphere: Sphere) -> Spher
 
 
 def _grow_once(image: np.ndarray, camera: Camera, cand: dict, smoothed: np.ndarray) -> dict:
-    """One round of :func:`_outermost_outline`: the largest larger outline around ``cand``, or ``cand``."""
+    """One round of :func:`_outermost_outline`: the largest larger outline around ``cand``, or ``cand``.
+    A grown outline must pass the chrome test without the clipped highlight's allowance
+    (:data:`CHROME_MIN_CLIPPED_CONTRAST`): its edge evidence is weaker (a narrow band), and
+    any circle drawn around a clipped highlight on a bright background would pass it."""
     cx, cy, r = cand["circle"]
     best = cand
     for k in GROW_RADII:
@@ -598,8 +682,12 @@ def _grow_once(image: np.ndarray, camera: Camera, cand: dict, smoothed: np.ndarr
 def is_chrome(f: dict) -> bool:
     """A chrome sphere shows a compact highlight much brighter than the rest of it (a
     single pixel will do: a 10 px sphere's highlight is that small), and its pixels fit
-    no smooth shading."""
-    return (f["contrast"] >= CHROME_MIN_CONTRAST and f["blob_pixels"] >= 1
+    no smooth shading. A highlight that clips is only known to be at least the clip level:
+    its contrast is then :data:`CHROME_MIN_CLIPPED_CONTRAST` or more over the median (a
+    mirror of a bright room in 8-bit cannot show :data:`CHROME_MIN_CONTRAST`)."""
+    bright = f["contrast"] >= CHROME_MIN_CONTRAST or (
+        f.get("clipped", False) and f.get("clip_contrast", 0.0) >= CHROME_MIN_CLIPPED_CONTRAST)
+    return (bright and f["blob_pixels"] >= 1
             and f["blob_fraction"] <= CHROME_MAX_BLOB_FRACTION and f["blob_excess"] >= CHROME_MIN_EXCESS
             and f["residual"] >= CHROME_MIN_RESIDUAL)
 
@@ -623,7 +711,9 @@ def pick_sphere(candidates: list[dict], kind: str, exclude: list[tuple] = ()) ->
         # light's (:func:`relight.probe.geometry.highlight_likelihood`), a large sphere (a
         # chrome sphere's outline is often faint where it reflects what lies beside it, and
         # its reflections show smaller circles inside it)
-        return max(pool, key=lambda c: c["edge_support"] + 0.1 * min(math.log10(c["contrast"]), 3.0) / 3.0
+        # (a clipped highlight's contrast is at least the clip level over the median: ``clip_contrast``)
+        return max(pool, key=lambda c: c["edge_support"]
+                   + 0.1 * min(math.log10(max(c["contrast"], c.get("clip_contrast", 0.0))), 3.0) / 3.0
                    + PICK_HIGHLIGHT_WEIGHT * max(c.get("highlight", 0.0), -3.0)
                    + PICK_RADIUS_WEIGHT * math.log(max(c["circle"][2], 1.0) / 20.0))
     # the clearest outline, the smoothest shading, and (slightly) the larger sphere

@@ -74,10 +74,12 @@ class ProbeResult:
 
 def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mask_path: str | None = None,
                   refine: bool = True, exclude=(), candidates: list | None = None,
-                  tolerance_px: float = CIRCLE_TOLERANCE_PX) -> tuple[Sphere, np.ndarray | None, str, dict]:
+                  tolerance_px: float = CIRCLE_TOLERANCE_PX, clip_level: float | None = None
+                  ) -> tuple[Sphere, np.ndarray | None, str, dict]:
     """The ``kind`` sphere in ``image`` from a mask, a circle, or automatic detection
     (``candidates``: those of :func:`relight.probe.detect.find_spheres`, if already found;
-    the list is filled in place). Returns ``(sphere, mask or None, how, refinement)``.
+    the list is filled in place; ``clip_level``: the image's, for detection). Returns
+    ``(sphere, mask or None, how, refinement)``.
 
     A given circle is the truth unless the image proves otherwise: it is refined on the
     image's edges (unless ``refine`` is off or ``tolerance_px`` is 0) only within
@@ -98,7 +100,7 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
     if candidates is None:
         candidates = []
     if not candidates:
-        candidates.extend(detect.find_spheres(image, camera))
+        candidates.extend(detect.find_spheres(image, camera, clip_level))
     found = detect.pick_sphere(candidates, kind, exclude)
     return found["sphere"], None, "detected", {}
 
@@ -123,18 +125,19 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
             raise ProbeError(f"{cfg.chrome} is black")
         camera = cfg.camera(image.shape[1], image.shape[0])
         chrome_found = locate_sphere(image, camera, "chrome", cfg.chrome_circle, cfg.chrome_mask, cfg.refine,
-                                     candidates=candidates, tolerance_px=cfg.circle_tolerance_px)
+                                     candidates=candidates, tolerance_px=cfg.circle_tolerance_px, clip_level=clip)
         chrome_circle = detect.outline_circle(camera, chrome_found[0])
         result.camera, result.chrome_image = camera, image
     d_dir = None
     if cfg.diffuse:
         same = cfg.diffuse == cfg.chrome
-        image = result.chrome_image if same else detect.read_probe_image(cfg.diffuse, cfg.linear)[0]
+        image, d_clip = (result.chrome_image, clip) if same else detect.read_probe_image(cfg.diffuse, cfg.linear)[:2]
         camera = cfg.camera(image.shape[1], image.shape[0])
         exclude = [chrome_circle] if same and chrome_circle is not None else []
         sphere, mask, found, refinement = locate_sphere(image, camera, "diffuse", cfg.diffuse_circle,
                                                         cfg.diffuse_mask, cfg.refine, exclude,
-                                                        candidates if same else None, cfg.circle_tolerance_px)
+                                                        candidates if same else None, cfg.circle_tolerance_px,
+                                                        d_clip)
         d_dir, rgb, info = geom.diffuse_light(image, camera, sphere, mask)
         entry["diffuse_circle"] = [round(v, 3) for v in detect.outline_circle(camera, sphere)]
         entry["diffuse_found_by"] = found
