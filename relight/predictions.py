@@ -58,6 +58,14 @@ class Prediction:
         """True for an entry without a direction (a colour-constancy baseline)."""
         return self.y is None and self.pan_deg is None and self.envmap is None
 
+    def camera_tilt(self, default: float) -> float:
+        """The camera tilt this entry's estimator used (its ``camera_tilt_deg``: a finite
+        number of degrees in (-90, 90)), else ``default``."""
+        tilt = self.extra.get("camera_tilt_deg")
+        if isinstance(tilt, (int, float)) and not isinstance(tilt, bool) and math.isfinite(tilt) and abs(tilt) < 90:
+            return float(tilt)
+        return float(default)
+
     @property
     def has_point_light(self) -> bool:
         """True when the entry gives a point light (angles or ``y``)."""

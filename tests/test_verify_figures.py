@@ -100,3 +100,23 @@ def test_pole_command(tmp_path, capsys, mi):
     code = main(["figure", "pole", str(tmp_path / "nomatch.png"), str(tmp_path / "p.json"),
                  "--out", str(tmp_path / "x.png")])
     assert code == 2 and "--id" in capsys.readouterr().err
+
+
+def test_pole_uses_the_entrys_camera_tilt(tmp_path, capsys, mi):
+    """A camera-frame model's entry carries the tilt it predicted; the pole is drawn with it
+    (the same image as --camera-tilt that value; another tilt draws another light)."""
+    from relight import frames
+    img = np.full((48, 48, 3), 40, np.uint8)
+    Image.fromarray(img).save(tmp_path / "street.png")
+    y = [float(v) for v in frames.encode_y(60.0, 35.0, [1.0, 1.0, 1.0], 20.0)]
+    write_predictions(tmp_path / "p.json", [{"id": "street", "y": y, "camera_tilt_deg": 20.0}])
+    outs = {}
+    for name, opt in (("own", []), ("given", ["--camera-tilt", "20"]), ("paper", ["--camera-tilt", "45"])):
+        outs[name] = tmp_path / f"{name}.png"
+        assert main(["figure", "pole", str(tmp_path / "street.png"), str(tmp_path / "p.json"), *opt,
+                     "--out", str(outs[name])]) == 0
+    text = capsys.readouterr().out
+    assert "camera tilt 20 deg" in text.splitlines()[0]
+    own, given, paper = (np.asarray(Image.open(outs[k])) for k in ("own", "given", "paper"))
+    np.testing.assert_array_equal(own, given)
+    assert (own != paper).any()

@@ -62,8 +62,9 @@ def add_commands(sub) -> None:
                                     "light into IMAGE's top-left corner (paper Figure 5).")
     p.add_argument("image", help="image (PNG/JPEG taken as sRGB, EXR linear)")
     p.add_argument("predictions", help="predictions file")
-    p.add_argument("--camera-tilt", type=camera_tilt, default=DEFAULT_PHOTO_CAMERA_TILT_DEG,
-                   help="assumed camera tilt in degrees (default 45, as in the paper)")
+    p.add_argument("--camera-tilt", type=camera_tilt, default=None,
+                   help="camera tilt in degrees (default: the entry's camera_tilt_deg, e.g. the tilt the "
+                        "model predicted, else 45 as in the paper)")
     p.add_argument("--id", default=None, help="entry to use (default: the only entry, or the image's file stem)")
     p.add_argument("--out", required=True, help="output PNG")
     p.set_defaults(func=cmd_pole)
@@ -243,9 +244,10 @@ def cmd_pole(args) -> int:
     check_file_target(args.out)
     image, _ = read_image(args.image)
     pred = entry_for_image(read_predictions(args.predictions).predictions, args.image, args.id)
-    pan, tilt, rgb = pred.resolve(args.camera_tilt)
+    cam_tilt = args.camera_tilt if args.camera_tilt is not None else pred.camera_tilt(DEFAULT_PHOTO_CAMERA_TILT_DEG)
+    pan, tilt, rgb = pred.resolve(cam_tilt)
     backend.init()
-    write_png(args.out, pole_overlay(image, pan, tilt, rgb, args.camera_tilt))
+    write_png(args.out, pole_overlay(image, pan, tilt, rgb, cam_tilt))
     print(f"{args.out}: pole under light pan_rel {pan:.1f} tilt {tilt:.1f} deg "
-          f"(camera tilt {args.camera_tilt:g} deg)", file=sys.stdout)
+          f"(camera tilt {cam_tilt:g} deg)", file=sys.stdout)
     return 0
