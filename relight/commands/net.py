@@ -111,7 +111,8 @@ def add_commands(sub) -> None:
                        description="Predict the light of PNG/JPEG (sRGB) or EXR (linear) images of any size.")
     p.add_argument("images", nargs="+", help="image files or folders of images")
     p.add_argument("--camera-tilt", type=camera_tilt, default=None,
-                   help="camera tilt in degrees used to decode the light tilt (default 45, the paper's)")
+                   help="camera tilt in degrees used to decode the light tilt (default: the model's own estimate "
+                        "when it has a camera head, as photo has; else 45, the paper's)")
     at.add_model_option(p)
     p.add_argument("--out", required=True, help="predictions file to write (relight.predictions/v1)")
     at.add_mirror_option(p)
