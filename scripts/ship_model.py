@@ -197,6 +197,11 @@ def train_command(s: dict, data_path, epochs: int | None = None, out: str = "RUN
                                ("seed", "--seed", 0), ("width", "--width", 32), ("workers", "--workers", 0)):
         if s.get(key, default) != default:
             opts.append(f"{flag} {s[key]:g}" if isinstance(s[key], float) else f"{flag} {s[key]}")
+    for key, flag, default in (("target_frame", "--target-frame", "world"), ("camera_weight", "--camera-weight", 0.0),
+                               ("source", "--source", "image"), ("augment", "--augment", "none"),
+                               ("epoch_images", "--epoch-images", None)):
+        if s.get(key, default) != default:   # the photo model's options (docs/photo.md)
+            opts.append(f"{flag} {s[key]:g}" if isinstance(s[key], float) else f"{flag} {s[key]}")
     opts.append(f"--torch-threads {s.get('threads', 1)}")
     opts.append(f"--loss-weights {w['pan']:g},{w['tilt']:g},{w['colour']:g}")
     if not s.get("flip", True):

@@ -347,3 +347,19 @@ def test_ship_as_photo_writes_its_own_files_and_card(ship_model, world, tmp_path
     card = (tmp_path / "models-bare" / "MODEL_CARD_photo.md").read_text()
     assert f"- Initialised from `{bare}` (a model file without a training record)" in card
     assert f"--init {bare} " in card
+
+
+def test_train_command_gives_the_photo_options(ship_model):
+    """A camera-frame run on the EXRs with the pipeline augmentation (the photo model's):
+    the card's command names those options, and relight's parser reads them back as run."""
+    from relight.cli import build_parser
+    s = {"loss_weights": {"pan": 1.0, "tilt": 1.0, "colour": 1.0, "kappa": 1.0}, "epochs": 30,
+         "plateau_patience": 2, "lr": 1e-4, "threads": 2, "arch": "paper", "target_frame": "camera",
+         "camera_weight": 1.0, "source": "exr", "augment": "photo", "epoch_images": 8000}
+    cmd = ship_model.train_command(s, "DATA")
+    args = build_parser().parse_args(cmd.split()[1:])
+    assert (args.target_frame, args.camera_weight, args.source, args.augment, args.epoch_images) == \
+        ("camera", 1.0, "exr", "photo", 8000)
+    plain = ship_model.train_command({**s, "target_frame": "world", "camera_weight": 0.0, "source": "image",
+                                      "augment": "none", "epoch_images": None}, "DATA")
+    assert not any(f in plain for f in ("--target-frame", "--camera-weight", "--source", "--augment", "--epoch-images"))
