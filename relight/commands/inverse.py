@@ -63,9 +63,9 @@ def cmd_invert(args) -> int:
     from relight.inverse.optimize import InverseError, InvertConfig
     from relight.predictions import write_predictions
     from relight.scene.spec import load_scene
-    from relight.net.io import SHIPPED_NAMES, shipped_model_path
+    from relight.net.io import named_file
     trace = args.trace or os.path.splitext(args.out)[0] + ".trace.csv"
-    model = shipped_model_path(args.model) if args.model in SHIPPED_NAMES else args.model   # a name: its file
+    model = named_file(args.model)   # a name: its file
     inputs = [args.data, args.scene, args.image, model,
               args.init if args.init not in ("grid", "network") else None]
     check_outputs([args.out, trace], inputs)

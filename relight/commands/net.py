@@ -122,9 +122,9 @@ def add_commands(sub) -> None:
 def cmd_train(args) -> int:
     import dataclasses
     from relight.fileio import check_folder_target, check_outputs
-    from relight.net.io import SHIPPED_NAMES, resolve_model
+    from relight.net.io import named_file
     from relight.net.train import TrainConfig, train
-    init = resolve_model(args.init) if args.init in SHIPPED_NAMES else args.init   # a name: its shipped file
+    init = named_file(args.init)   # a name: its shipped file
     check_outputs([args.out], [*args.data, init])
     check_folder_target(args.out)
     cfg = TrainConfig(data_dir=tuple(args.data), init=os.path.abspath(init) if init else None,
@@ -147,9 +147,9 @@ def cmd_train(args) -> int:
 def cmd_calibrate(args) -> int:
     from relight.fileio import check_file_target, check_outputs
     from relight.net.calibrate import CalibrationConfig, calibrate_model_file
-    from relight.net.io import resolve_model
+    from relight.net.io import named_file, resolve_model
     model_file = resolve_model(args.model)   # a shipped name, a file or a run folder's best.safetensors
-    check_outputs([args.out], [*args.data, model_file, _given_path(args.model)])
+    check_outputs([args.out], [*args.data, model_file, named_file(args.model)])
     check_file_target(args.out)
     rep = calibrate_model_file(model_file, args.data, args.out,
                                CalibrationConfig(split=args.split, mode=args.mode, ood=args.ood), progress=True)
@@ -175,22 +175,16 @@ def _model_label(args) -> str:
     return model_label(args.model) + (" (mirror-averaged)" if args.mirror_average else "")
 
 
-def _given_path(model) -> str | None:
-    """The --model given when it is a path (a run folder the outputs must stay out of), else None."""
-    from relight.net.io import SHIPPED_NAMES
-    return None if model is None or model in SHIPPED_NAMES else model
-
-
 def cmd_evaluate(args) -> int:
     import torch
 
     from relight import metrics
     from relight.net.evaluate import evaluate
     from relight.fileio import check_folder_target, check_outputs
-    from relight.net.io import resolve_model
+    from relight.net.io import named_file, resolve_model
     from relight.net.predict import load_model
     model_file = resolve_model(args.model)
-    check_outputs([args.out], [args.data, model_file, _given_path(args.model)])
+    check_outputs([args.out], [args.data, model_file, named_file(args.model)])
     check_folder_target(args.out)
     torch.set_num_threads(1)
     model = load_model(model_file, mirror_average=args.mirror_average)
@@ -217,10 +211,10 @@ def cmd_evaluate(args) -> int:
 def cmd_predict(args) -> int:
     from relight.net.predict import DEFAULT_CAMERA_TILT_DEG, list_images, load_model, predict_files
     from relight.fileio import check_file_target, check_outputs
-    from relight.net.io import resolve_model
+    from relight.net.io import named_file, resolve_model
     from relight.predictions import write_predictions
     model_file = resolve_model(args.model)
-    check_outputs([args.out], args.images + [model_file, _given_path(args.model)])
+    check_outputs([args.out], args.images + [model_file, named_file(args.model)])
     check_file_target(args.out)
     model = load_model(model_file, mirror_average=args.mirror_average)
     files = list_images(args.images)

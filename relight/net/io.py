@@ -20,7 +20,7 @@ from __future__ import annotations
 
 __all__ = ["stored_float_dtype",
     "MODEL_FORMAT", "MODELS_DIR", "SHIPPED_NAMES", "DEFAULT_MODELS", "SHIPPED_NAME", "SHIPPED_MODEL",
-    "shipped_model_path", "resolve_model", "default_model_name", "model_label", "save_model",
+    "shipped_model_path", "named_file", "resolve_model", "default_model_name", "model_label", "save_model",
     "read_model_file", "read_model_header", "load_model_file", "ModelFileError",
 ]
 
@@ -53,6 +53,17 @@ def shipped_model_path(name: str) -> str:
     if name not in SHIPPED_NAMES:
         raise ModelFileError(f"no shipped model is named {name!r} (shipped names: {', '.join(SHIPPED_NAMES)})")
     return os.path.join(MODELS_DIR, f"{name}.safetensors")
+
+
+def named_file(value: str | os.PathLike | None) -> str | None:
+    """What a ``--model`` value names on disk: a shipped name's file (ModelFileError, one
+    line, when this build lacks it), else the value as given (a file or a run folder, not
+    resolved; ``None`` stays ``None``). The commands check their outputs against it
+    (:func:`relight.fileio.check_outputs`); :func:`resolve_model` gives the model file itself."""
+    if value is None:
+        return None
+    value = os.fspath(value)
+    return resolve_model(value) if value in SHIPPED_NAMES else value
 
 
 def default_model_name() -> str | None:
