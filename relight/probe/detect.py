@@ -481,11 +481,19 @@ def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = N
     out: list[dict] = []
     refined: list[tuple] = []
 
+    screens: dict[tuple, tuple | None] = {}   # a circle's screen, once: the clipped-spot order reads it too
+
+    def screened_at(cx, cy, r):
+        if (cx, cy, r) not in screens:
+            try:
+                screens[cx, cy, r] = _screen(smoothed, camera, cx, cy, r)
+            except ProbeError:
+                screens[cx, cy, r] = None
+        return screens[cx, cy, r]
+
     def screen(c):
-        try:
-            return _screen(smoothed, camera, *c)[0]
-        except ProbeError:
-            return -1
+        found = screened_at(*c)
+        return -1 if found is None else found[0]
     proposals = hough_circles(image) if clip_level is None else hough_circles(image, clip_level, screen)
     for cx, cy, r in proposals:
         # Hough circles near one already refined to the same place add nothing
@@ -498,10 +506,9 @@ def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = N
         # often off); those screening well enough are refined, the best supported stays
         screened = []
         for k in RADIUS_HYPOTHESES:
-            try:
-                screened.append((*_screen(smoothed, camera, cx, cy, r * k), r * k))
-            except ProbeError:
-                continue
+            found = screened_at(cx, cy, r * k)
+            if found is not None:
+                screened.append((*found, r * k))
         if not screened:
             continue
         # every radius that passes the screen is refined: the screen keeps the proposed
