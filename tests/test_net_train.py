@@ -407,6 +407,21 @@ def test_epoch_images_walk_every_image_once_per_pass(n, size):
     assert _epoch_order(n, 4, 0, size) != _epoch_order(n, 5, 0, size)
 
 
+def test_resume_with_a_new_lr_and_patience_continues_with_them(tiny, tmp_path):
+    cfg = TrainConfig(data_dir=tiny, epochs=1, batch_size=4, res=RES, width=8, lr=1e-3)
+    train(cfg, tmp_path / "run", progress=False)
+    lower = dataclasses.replace(cfg, epochs=2, lr=1e-5, plateau_patience=7)
+    train(lower, tmp_path / "run", resume=True, progress=False)
+    with open(tmp_path / "run" / "log.csv") as f:
+        assert [float(r["lr"]) for r in csv.DictReader(f)] == [1e-3, 1e-5]
+    state = torch.load(tmp_path / "run" / "checkpoint.pt", weights_only=True)
+    assert state["scheduler"]["patience"] == 7
+    # the identical command later keeps the lr the run has reached (a plateau drop is not undone)
+    train(dataclasses.replace(lower, epochs=3), tmp_path / "run", resume=True, progress=False)
+    with open(tmp_path / "run" / "log.csv") as f:
+        assert float(list(csv.DictReader(f))[-1]["lr"]) <= 1e-5
+
+
 def test_epoch_images_sets_the_images_per_epoch_and_is_kept_on_resume(tiny, tmp_path):
     cfg = TrainConfig(data_dir=tiny, epochs=2, batch_size=4, res=RES, width=8, epoch_images=3)
     row = train(cfg, tmp_path / "short", progress=False)

@@ -460,6 +460,10 @@ def _restore(cfg: TrainConfig, out_dir: str, resume: bool, ddp, writer: bool) ->
             scheduler.load_state_dict(state["scheduler"])
             start_epoch, rows, best = int(state["epoch"]), list(state["history"]), float(state["best_val_loss"])
             torch.set_rng_state(state["torch_rng"])
+            if state["settings"].get("lr", cfg.lr) != cfg.lr:   # --resume --lr X: continue at X
+                for group in optimiser.param_groups:
+                    group["lr"] = cfg.lr
+            scheduler.patience = cfg.plateau_patience   # the loaded state carries the old one
         except (RuntimeError, ValueError, TypeError, KeyError, AttributeError) as exc:
             raise TrainingError(f"{ckpt_path}: checkpoint does not match this network "
                                 f"({brief(exc)}); delete it to start over") from None
