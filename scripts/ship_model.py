@@ -27,6 +27,7 @@ model for real photographs and the default of ``relight predict`` / ``relight ev
 from __future__ import annotations
 
 import argparse
+import collections
 import csv
 import json
 import os
@@ -171,6 +172,39 @@ def architecture_text(config) -> str:
     return head + ":\n" + "\n".join(f"  {ln}" for ln in lines)
 
 
+# The one command that makes a shipped model's data, trains, calibrates it (resumable)
+SCRIPTS = {"photo": "scripts/train_photo.sh"}
+
+
+def script_line(name: str) -> str:
+    """The card's line naming the model's reproduction script, if it has one."""
+    script = SCRIPTS.get(name)
+    return (f"- The whole chain (data, training, calibration), resumable: `bash {script}`; "
+            "its steps:\n") if script else ""
+
+
+def output_text(config) -> str:
+    """How the card says the 7 outputs are read: in the camera frame with the camera head's
+    tilt (the photo model), or in the world frame with a given or assumed tilt."""
+    frame = ("in the camera frame (`--target-frame camera`)" if config.target_frame == "camera"
+             else "in the world frame")
+    if config.camera_head:
+        return (f"{frame}, decoded with the camera tilt its camera head predicts per image (`--camera-tilt` "
+                "overrides it); every prediction carries `to_light_camera` and `camera_tilt_deg`")
+    return f"{frame}, decoded with the camera tilt (photographs: 45 deg assumed, as in the paper)"
+
+
+def train_images_text(meta: dict, tds: list) -> str:
+    """The size of the train split(s), and the images an epoch draws from it when that differs."""
+    per_epoch = meta["train_images_per_epoch"][-1]
+    split = meta["settings"].get("train_split", "train")
+    total = sum(d.get("records", 0) if split == "all" else (d.get("split_records") or {}).get(split, 0)
+                for d in tds)
+    if not total or total == per_epoch:
+        return f"{per_epoch} images"
+    return f"{total:,} images; {per_epoch:,} drawn per epoch"
+
+
 def data_options(data_path) -> str:
     """``--data A`` for one training folder, ``--data A --data B`` for several."""
     return " ".join(f"--data {p}" for p in ([data_path] if isinstance(data_path, str) else data_path))
@@ -206,9 +240,10 @@ def train_command(s: dict, data_path, epochs: int | None = None, out: str = "RUN
     opts.append(f"--loss-weights {w['pan']:g},{w['tilt']:g},{w['colour']:g}")
     if not s.get("flip", True):
         opts.append("--no-flip")
-    if s.get("max_minutes") is not None:
-        opts.append(f"--max-minutes {s['max_minutes']:g}")
-    opts.append(f"--arch {s.get('arch', 'small')} --kappa-weight {w.get('kappa', 0.0):g}")
+    # --max-minutes only cuts a run into sittings (an unfinished run is said by ``epochs``);
+    # with --init the loaded model is the network, so --arch would only mislead
+    opts.append(("" if s.get("init") else f"--arch {s.get('arch', 'small')} ")
+                + f"--kappa-weight {w.get('kappa', 0.0):g}")
     if not s.get("kappa_detach", True):
         opts.append("--kappa-into-features")
     return "relight train " + " ".join(opts)
@@ -281,8 +316,10 @@ def start_option(start: dict | None) -> str | None:
 
 def _dataset_record(path: str) -> dict:
     card = read_card(path)
+    records = read_manifest(path)
     return {"path": path, "seed": card["seed"], "config": card["config"], "spp": card.get("spp"),
-            "records": len(read_manifest(path))}
+            "records": len(records),
+            "split_records": dict(collections.Counter(str(r.get("split")) for r in records))}
 
 
 def ship(run: str, train_data, model_path: str | None = None, models_dir: str = MODELS_DIR,
@@ -457,9 +494,11 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
     config = NetConfig.from_dict(meta["config"])
     res = config.res
     overall = ev["tables"]["overall"]
-    s = meta["settings"]
-    w = s["loss_weights"]
     rows = list(csv.DictReader(open(os.path.join(models_dir, f"{name}_log.csv"))))
+    s = dict(meta["settings"])
+    if rows:   # the rate the run started at: a resumed run's settings hold its last command's --lr
+        s["lr"] = float(rows[0]["lr"])
+    w = s["loss_weights"]
     unfinished = len(rows) < int(s["epochs"])
     stages = meta.get("stages") or ([meta["base"]] if meta.get("base") else [])   # "base": cards before chains
     td = meta["train_dataset"]
@@ -535,7 +574,8 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
     cal = meta.get("kappa_calibration")
     if cal:
         calibrate_line = (f"relight calibrate --run RUN {data_options(cal['data_dir'])} --split {cal['split']} "
-                          f"--mode {cal['settings']['mode']} --out CAL.safetensors\n")
+                          f"--mode {cal['settings']['mode']}{' --ood' if meta.get('ood') else ''} "
+                          "--out CAL.safetensors\n")
         ship_extra = " --model CAL.safetensors"
     ship_extra += "".join(f" --prior-test {name}={folder}" for name, (folder, _) in (prior_evals or {}).items())
     ship_extra += "".join(f" --other-test {name}={folder}" for name, (folder, _) in (other_evals or {}).items())
@@ -573,17 +613,16 @@ Single Image with Deep Regression"), trained by `relight train` on {trained_on}.
 - {meta['parameters']:,} parameters; {meta['gflop_per_image']:.3f} GFLOP per {res} px image (forward).
 - Input: {res} x {res} 8-bit sRGB scaled to [0, 1] (PNG/JPEG as is; EXR / linear arrays encoded
   with `relight.imageio.to_srgb8` first, like the dataset PNGs; other sizes centre-cropped to a
-  square and bilinearly resized). Output: the 7-vector of `shared/conventions.md`, decoded
-  with the camera tilt (photographs: 45 deg assumed, as in the paper).
+  square and bilinearly resized). Output: the 7-vector of `shared/conventions.md`, {output_text(config)}.
 - File: safetensors (no pickle), float16 weights (loaded as float32), {os.path.getsize(os.path.join(models_dir, f"{name}.safetensors")) / 1e6:.1f} MB; metadata in its
   header and in `{name}.json`; training log `{name}_log.csv`.
 
 ## Training data
-{earlier_data}{final_data_text}- {ranges}{splits} ({meta['train_images_per_epoch'][-1]} images) train{'s' if n_final == 1 else ''}, {'its `val` split drives' if n_final == 1 else 'their `val` splits drive'}
+{earlier_data}{final_data_text}- {ranges}{splits} ({train_images_text(meta, tds)}) train{'s' if n_final == 1 else ''}, {'its `val` split drives' if n_final == 1 else 'their `val` splits drive'}
   the scheduler and the choice of the best epoch. The paper used 45,000 images.
 
 ## Training
-{stage_text}- `{train_cmd_line}`
+{script_line(name)}{stage_text}- `{train_cmd_line}`
 - Adam lr {s['lr']:g}, ReduceLROnPlateau factor 0.1 (patience {s['plateau_patience']}) on the val loss,
   batch {s['batch_size']}, horizontal flips (pan_rel -> 360 - pan_rel), loss
   {w['pan']:g} x MSE(pan pair) + {w['tilt']:g} x MSE(tilt pair) + {w['colour']:g} x mean RGB angular error (radians).

@@ -1,6 +1,7 @@
 """scripts/ship_model.py: the model card reads the model's input size, the encoder's
 modules, the datasets' sampler / noise target / samples per pixel and colour prior from
 their metadata, and reports the colour error on a test set of each colour prior."""
+import csv
 import importlib.util
 import json
 import os
@@ -363,3 +364,53 @@ def test_train_command_gives_the_photo_options(ship_model):
     plain = ship_model.train_command({**s, "target_frame": "world", "camera_weight": 0.0, "source": "image",
                                       "augment": "none", "epoch_images": None}, "DATA")
     assert not any(f in plain for f in ("--target-frame", "--camera-weight", "--source", "--augment", "--epoch-images"))
+
+
+def test_card_gives_the_rate_the_run_started_at_and_its_split(ship_model, world, tmp_path, monkeypatch, capsys):
+    """A run resumed with another --lr and --max-minutes records its last command's settings:
+    the card's command and text give the rate of its log's first epoch (the drops are listed
+    from the log) and no --max-minutes; the train split's size is given beside the images
+    an epoch draws from it (``--epoch-images``)."""
+    models = tmp_path / "models"
+    monkeypatch.setattr(sys, "argv", ["ship_model.py", "--run", str(world / "run"), "--train-data",
+                                      str(world / "train"), "--test-data", str(world / "test"),
+                                      "--eval-out", str(tmp_path / "ev"), "--models-dir", str(models)])
+    assert ship_model.main() == 0
+    capsys.readouterr()
+    meta = json.load(open(models / "sid2.json"))
+    with open(models / "sid2_log.csv") as f:
+        started = float(next(csv.DictReader(f))["lr"])
+    meta["settings"] |= {"lr": started / 10, "max_minutes": 24.0}
+    split = meta["settings"]["train_split"]
+    n_train = meta["train_dataset"]["records" if split == "all" else "split_records"]
+    n_train = n_train if split == "all" else n_train[split]
+    meta["train_images_per_epoch"] = [n_train - 1, n_train - 1]
+    card = ship_model.write_card(meta, str(tmp_path / "ev"), str(world / "test"), "notes")
+    assert f"Adam lr {started:g}," in card and f"{started / 10:g}" not in card
+    assert "--max-minutes" not in card
+    assert f"({n_train:,} images; {n_train - 1:,} drawn per epoch) train" in " ".join(card.split())
+
+
+def test_card_says_how_a_camera_head_model_answers(ship_model):
+    from relight.net.model import NetConfig
+    camera = ship_model.output_text(NetConfig(res=RES, width=8, camera_head=True, target_frame="camera"))
+    assert "camera frame" in camera and "camera head predicts" in camera and "45 deg" not in camera
+    world_frame = ship_model.output_text(NetConfig(res=RES, width=8))
+    assert "world frame" in world_frame and "45 deg assumed" in world_frame
+    s = {"loss_weights": {"pan": 1.0, "tilt": 1.0, "colour": 1.0, "kappa": 1.0}, "epochs": 3,
+         "plateau_patience": 2, "lr": 1e-4, "arch": "small", "init": "sid2.safetensors", "max_minutes": 5.0}
+    cmd = ship_model.train_command(s, "DATA", init="sid2")
+    assert "--init sid2 " in cmd and "--arch" not in cmd and "--max-minutes" not in cmd
+    assert "--arch small" in ship_model.train_command({**s, "init": None}, "DATA")
+
+
+def test_a_named_script_exists_and_makes_what_the_card_says(ship_model):
+    """The photo card names scripts/train_photo.sh: the file exists and its train command is
+    the card's (the same options as a train_command of the run's settings would give)."""
+    line = ship_model.script_line("photo")
+    path = os.path.join(ROOT, ship_model.SCRIPTS["photo"])
+    assert ship_model.SCRIPTS["photo"] in line and os.path.isfile(path)
+    assert ship_model.script_line("sid2") == ""
+    text = open(path).read()
+    for opt in ("--target-frame camera", "--source exr", "--augment photo", "--init sid2", "--ood"):
+        assert opt in text, opt
