@@ -395,6 +395,38 @@ def test_chrome_outline_grows_past_a_reflection_circle_inside_it():
     assert grown["chrome"]
 
 
+def test_chrome_outline_grows_through_nested_reflection_bands():
+    # near its rim a mirror sphere compresses what surrounds it into concentric bands (the
+    # image radius goes as the sine of half the reflection angle): here bright / dark / bright
+    # / dark bands end at 0.72, 0.81 and 0.90 of the radius, 11-12% apart, the last one dark
+    # against a dim background (scene 29 of the issue-29 set: a dark rim). A fit started on
+    # the innermost circle must step outward band by band: 20% and 40% steps land between
+    # bands (the growth stopped at 0.82 of the radius); the 10% step tried then reaches the outline
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 58.0, 8.0)
+    cx, cy, r = detect.outline_circle(cam, sphere)
+
+    def bands(s):
+        rf = s["reflect"]
+        rho = np.sqrt(np.clip((1.0 - rf[..., 2]) / 2.0, 0.0, 1.0))    # image radius / outline radius
+        stripes = np.sin(6.0 * np.arctan2(rf[..., 1], rf[..., 0])) > 0   # (no smooth shading fits it)
+        value = np.where(rho < 0.72, np.where(stripes, 0.25, 0.02), 0.02)
+        value = np.where((rho > 0.81) & (rho <= 0.9), 0.2, value)
+        return value - 0.08 - 0.04 * rf[..., 1]       # in place of _render's dim sky
+    image = _quantise(_render(cam, sphere, np.array([0.3, 0.4, 0.87]), extra=bands, background=0.15))
+    smoothed = detect._edge_image(image)
+    inner, support = detect.refine_sphere(image, cam, pg.sphere_from_circle(cam, cx, cy, 0.72 * r), smoothed,
+                                          first_band_px=2.0)
+    inner_circle = detect.outline_circle(cam, inner)
+    assert inner_circle[2] < 0.8 * r                     # the fit does lock onto the innermost band
+    f = detect.sphere_features(image, cam, inner)
+    cand = {"sphere": inner, "circle": inner_circle, "edge_support": support, **f, "chrome": True, "diffuse": False}
+    grown = detect._outermost_outline(image, cam, cand, smoothed)
+    assert abs(grown["circle"][2] - r) < 0.5
+    assert math.dist(grown["circle"][:2], (cx, cy)) < 0.5
+    assert grown["chrome"]
+
+
 def test_every_radius_that_passes_the_screen_is_refined(monkeypatch):
     # a chrome sphere on a dark plate of broken outline (floor dots), 1.2 times its radius and
     # 3 px higher: the one proposal is the plate's circle. The screen keeps the proposal's

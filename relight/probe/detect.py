@@ -25,7 +25,7 @@ __all__ = [
     "CHROME_MAX_BLOB_FRACTION", "CHROME_MIN_EXCESS", "CHROME_MIN_CLIPPED_CONTRAST", "CLIP_FRACTION", "DIFFUSE_MAX_RESIDUAL", "TRIM_FRACTION",
     "read_probe_image", "load_mask", "edge_points", "refine_sphere", "sphere_features", "hough_circles",
     "find_spheres", "is_chrome", "is_diffuse", "pick_sphere",
-    "outline_fit_px", "constrained_refinement", "GROW_RADII", "GROW_MIN_SUPPORT_RATIO", "GROW_ROUNDS",
+    "outline_fit_px", "constrained_refinement", "GROW_RADII", "GROW_FINE_RADII", "GROW_MIN_SUPPORT_RATIO", "GROW_ROUNDS",
     "PICK_HIGHLIGHT_WEIGHT", "PICK_RADIUS_WEIGHT", "CHROME_INSIDE_PX", "outer_rim_fit",
 ]
 
@@ -61,6 +61,9 @@ MAX_CANDIDATES = 60
 SPOT_PROPOSALS = 20            # ... of which the last 20: the rest's circles with the most highlight-like spot
 CLIPPED_SPOT_PROPOSALS = 20    # ... and in a clipping image as many again holding a compact clipped spot
 GROW_RADII = (1.2, 1.4)         # a chrome candidate: larger concentric outlines tried ...
+GROW_FINE_RADII = (1.1,)       # ... and, when none of those grows, this finer step (near its rim a mirror
+                               # compresses its surroundings into concentric bands ~10% apart, which a 20%
+                               # step jumps over: issue-29 scene 29's dark rim) ...
 GROW_MIN_SUPPORT_RATIO = 0.8   # ... and kept with at least 80% of its edge support,
 GROW_ROUNDS = 3                # ... again from the larger one, up to three times
 CHROME_INSIDE_PX = 0.5         # a chrome outline's edge points further inside than this are reflections
@@ -589,7 +592,8 @@ def _outermost_outline(image: np.ndarray, camera: Camera, cand: dict, smoothed: 
     sphere's reflections (the horizon of a floor, a window, a bright wall) draw smaller,
     often stronger, near-concentric circles inside it, and its rim is faint where it
     mirrors what lies beside it, so a fit may lock onto an inner one. Larger concentric
-    circles (:data:`GROW_RADII` times the radius) are refined; the largest whose edge
+    circles (:data:`GROW_RADII` times the radius; when none of them grows,
+    :data:`GROW_FINE_RADII`) are refined; the largest whose edge
     support (the strongest edge within half the gap to the inner circle) reaches
     :data:`GROW_MIN_SUPPORT_RATIO` of the candidate's (and :data:`MIN_EDGE_SUPPORT`),
     which contains it and is still chrome, replaces it, and the search goes on from
@@ -664,7 +668,9 @@ def _grow_once(image: np.ndarray, camera: Camera, cand: dict, smoothed: np.ndarr
     any circle drawn around a clipped highlight on a bright background would pass it."""
     cx, cy, r = cand["circle"]
     best = cand
-    for k in GROW_RADII:
+    for k in (*GROW_RADII, *GROW_FINE_RADII):
+        if k in GROW_FINE_RADII and best is not cand:
+            break
         try:
             guess = sphere_from_circle(camera, cx, cy, r * k)
             sphere, _ = refine_sphere(image, camera, guess, smoothed, first_band_px=max(3.0, 0.12 * r * k))
