@@ -382,17 +382,7 @@ def test_chrome_outline_grows_past_a_reflection_circle_inside_it():
         return np.where((r[..., 2] > -0.2) & wedges, 0.5, 0.0)
     image = _render(cam, sphere, to_light, extra=window, background=0.3, clip=False)
     cx, cy, r = detect.outline_circle(cam, sphere)
-    smoothed = detect._edge_image(image)
-    inner, support = detect.refine_sphere(image, cam, pg.sphere_from_circle(cam, cx, cy, 0.78 * r), smoothed,
-                                          first_band_px=2.0)
-    inner_circle = detect.outline_circle(cam, inner)
-    assert inner_circle[2] < 0.9 * r                     # the fit does lock onto the reflection
-    f = detect.sphere_features(image, cam, inner)
-    cand = {"sphere": inner, "circle": inner_circle, "edge_support": support, **f, "chrome": True, "diffuse": False}
-    grown = detect._outermost_outline(image, cam, cand, smoothed)
-    assert abs(grown["circle"][2] - r) < 0.5
-    assert math.dist(grown["circle"][:2], (cx, cy)) < 0.5
-    assert grown["chrome"]
+    _assert_grows_to_the_outline(image, cam, (cx, cy, r), start=0.78, locks_below=0.9)
 
 
 def test_chrome_outline_grows_through_nested_reflection_bands():
@@ -414,11 +404,19 @@ def test_chrome_outline_grows_through_nested_reflection_bands():
         value = np.where((rho > 0.81) & (rho <= 0.9), 0.2, value)
         return value - 0.08 - 0.04 * rf[..., 1]       # in place of _render's dim sky
     image = _quantise(_render(cam, sphere, np.array([0.3, 0.4, 0.87]), extra=bands, background=0.15))
+    _assert_grows_to_the_outline(image, cam, (cx, cy, r), start=0.72, locks_below=0.8)
+
+
+def _assert_grows_to_the_outline(image, cam, circle, start, locks_below):
+    """A fit started at ``start`` of the true circle's radius locks onto an inner circle
+    (below ``locks_below`` of it); the outline growth from there ends on the true outline
+    (within 0.5 px) and still chrome."""
+    cx, cy, r = circle
     smoothed = detect._edge_image(image)
-    inner, support = detect.refine_sphere(image, cam, pg.sphere_from_circle(cam, cx, cy, 0.72 * r), smoothed,
+    inner, support = detect.refine_sphere(image, cam, pg.sphere_from_circle(cam, cx, cy, start * r), smoothed,
                                           first_band_px=2.0)
     inner_circle = detect.outline_circle(cam, inner)
-    assert inner_circle[2] < 0.8 * r                     # the fit does lock onto the innermost band
+    assert inner_circle[2] < locks_below * r             # the fit does lock onto the inner circle
     f = detect.sphere_features(image, cam, inner)
     cand = {"sphere": inner, "circle": inner_circle, "edge_support": support, **f, "chrome": True, "diffuse": False}
     grown = detect._outermost_outline(image, cam, cand, smoothed)
