@@ -46,6 +46,9 @@ def _row(label: str, s: dict, keys=("direction_deg",)) -> str:
     if "follow_x_r" in s:
         parts.append(f"{s['follow_x_r']:5.2f} {s['follow_y_r']:5.2f}")
         parts.append(f"{s['image_angle_deg_median']:7.1f}  {s['slant_error_deg_median']:6.1f} {s['slant_bias_deg']:+6.1f}")
+    if "slope_x" in s:
+        parts.append(f"{s['slope_x']:5.2f} {s['slope_y']:5.2f}  {s['bias_x']:+5.2f} {s['bias_y']:+5.2f}"
+                     f"  {s['bias_free_median_deg']:7.1f}")
     return "  ".join(parts)
 
 
@@ -162,7 +165,7 @@ def main(argv=None) -> int:
             if kind in ("photo", "photo-off"):
                 _, truth = photos.read_photo_set(folder, names)
                 print(f"  {'':<42}  {'n':>4}  direction       cone90  ood    follows x y"
-                      "  in-image  slant |err| bias")
+                      "  in-image  slant |err| bias  slope x y    bias x y  bias-free")
                 print(_row("  constant guess: light at the camera", _constant_guess(truth)))
             else:
                 head_keys = ("direction_deg", "world_direction_deg", "colour_deg")
@@ -183,7 +186,10 @@ def main(argv=None) -> int:
               "the light; near 0: a well-placed constant); in-image: median error of the light's "
               "direction in the image plane, which an object's shading determines; slant: median "
               "absolute and signed error of its angle from the view axis, which shading leaves to "
-              "shadows, highlights and priors (the bas-relief ambiguity; relight.net.photos.shading_split)")
+              "shadows, highlights and priors (the bas-relief ambiguity; relight.net.photos.shading_split); "
+              "slope: of the predicted on the true x / y within each object (1 tracks the light, 0 stays "
+              "put: shrinkage toward an average), bias: mean predicted minus true x / y, bias-free: the "
+              "median error with that bias removed, a diagnostic using the truth (relight.net.photos.shrinkage)")
         if args.json:
             from relight.fileio import write_json
             write_json(args.json, results)

@@ -535,3 +535,39 @@ def test_shading_split_separates_the_bas_relief_slant_from_the_image_direction()
                    "ood": np.zeros(30, bool), "to_light_camera": relief, "true_to_light_camera": truth})
     assert out["image_angle_deg_median"] == pytest.approx(0, abs=1e-9)
     assert out["slant_bias_deg"] == pytest.approx(np.median(expected))
+
+
+def test_shrinkage_reads_the_slope_and_the_shift_of_answers_pulled_to_an_average():
+    from relight import metrics
+    from relight.net.photos import shrinkage, summary
+    rng = np.random.default_rng(9)
+    truth = rng.normal(size=(36, 3)) * [0.25, 0.2, 0.1] + [0, 0.3, 1]
+    truth /= np.linalg.norm(truth, axis=1, keepdims=True)
+    groups = np.repeat(["owl", "cat", "rock"], 12)
+    offset = {"owl": 0.05, "cat": -0.1, "rock": 0.0}          # each object's own shift: not a slope
+    # answers pulled toward each object's mean by 0.4 in x and 0.1 in y, then shifted
+    pred = np.zeros_like(truth)
+    for g in offset:
+        k = groups == g
+        m = truth[k].mean(0)
+        pred[k, 0] = m[0] + 0.4 * (truth[k, 0] - m[0]) + offset[g] - 0.2
+        pred[k, 1] = m[1] + 0.1 * (truth[k, 1] - m[1]) + 0.15
+    pred[:, 2] = np.sqrt(1 - (pred[:, :2] ** 2).sum(1))
+    out = shrinkage(pred, truth, groups)
+    assert out["slope_x"] == pytest.approx(0.4) and out["slope_y"] == pytest.approx(0.1)
+    assert out["bias_x"] == pytest.approx(np.mean(pred[:, 0] - truth[:, 0]))
+    assert out["bias_y"] == pytest.approx(0.15)
+    # answers that are the truth shifted by a constant in x and y: slopes 1, nothing left once unshifted
+    shifted = truth.copy()
+    shifted[:, :2] += [0.1, -0.12]
+    shifted[:, 2] = np.sqrt(1 - (shifted[:, :2] ** 2).sum(1))
+    out = shrinkage(shifted, truth, groups)
+    assert out["slope_x"] == pytest.approx(1) and out["slope_y"] == pytest.approx(1)
+    assert out["bias_free_median_deg"] == pytest.approx(0, abs=1e-6)
+    assert np.median(metrics.angle_deg(shifted, truth)) > 5                     # the shift itself costs
+    # a constant answer does not move with the light at all
+    assert shrinkage(np.tile(truth.mean(0), (36, 1)), truth, groups)["slope_x"] == pytest.approx(0, abs=1e-12)
+    s = summary({"direction_deg": metrics.angle_deg(pred, truth), "covered": np.ones(36, bool),
+                 "ood": np.zeros(36, bool), "to_light_camera": pred, "true_to_light_camera": truth,
+                 "group": list(groups)})
+    assert s["slope_x"] == pytest.approx(0.4)

@@ -25,7 +25,7 @@ import numpy as np
 from relight import frames, metrics
 
 __all__ = ["SHARED_DATA_ENV", "shared_data_dir", "read_photo_set", "score_photo_set", "score_dataset", "summary",
-           "follows_light", "shading_split"]
+           "follows_light", "shading_split", "shrinkage"]
 
 SHARED_DATA_ENV = "RELIGHT_SHARED_DATA"
 
@@ -104,8 +104,9 @@ def score_photo_set(model, folder: str, names: tuple[str, ...] | None = None,
     true light, camera frame. ``camera_tilt_deg``: None = the model's own (camera head; else
     the paper's 45). ``backdrop_off``: everything outside the object (its ``NAME.mask.png``)
     set to black first, a diagnostic of how much the surroundings move the answer.
-    Returns per-image arrays ``id``, ``direction_deg``, ``covered``, ``ood``,
-    ``camera_tilt_deg``, ``to_light_camera`` and ``true_to_light_camera``."""
+    Returns per-image arrays ``id``, ``group`` (the object: the name before the light's
+    number), ``direction_deg``, ``covered``, ``ood``, ``camera_tilt_deg``,
+    ``to_light_camera`` and ``true_to_light_camera``."""
     from relight.net.predict import predict_arrays, predict_files
     files, truth = read_photo_set(folder, names)
     if backdrop_off:
@@ -117,7 +118,8 @@ def score_photo_set(model, folder: str, names: tuple[str, ...] | None = None,
         preds = predict_files(model, files, camera_tilt_deg)
     pred = np.array([p["to_light_camera"] for p in preds], dtype=np.float64).reshape(-1, 3)
     err = metrics.angle_deg(pred, truth)
-    return {"id": [p["id"] for p in preds], "direction_deg": err, "covered": _cone_covers(preds, err),
+    return {"id": [p["id"] for p in preds], "group": [i.split(".")[0] for i in (p["id"] for p in preds)],
+            "direction_deg": err, "covered": _cone_covers(preds, err),
             "ood": np.array([bool(p.get("ood", False)) for p in preds]),
             "camera_tilt_deg": np.array([p["camera_tilt_deg"] for p in preds]),
             "to_light_camera": pred, "true_to_light_camera": np.asarray(truth, np.float64).reshape(-1, 3)}
@@ -138,6 +140,30 @@ def follows_light(pred, truth) -> tuple[float, float]:
         else:
             out.append(float(np.corrcoef(p, t)[0, 1]))
     return out[0], out[1]
+
+
+def shrinkage(pred, truth, groups=None) -> dict[str, float]:
+    """How far a set of camera-frame answers ``(N, 3)`` is pulled toward an average, and how
+    far it is shifted: ``slope_x`` / ``slope_y``, the least-squares slope of the predicted on
+    the true right (x) / up (y) component within each group (e.g. one object under every
+    light; pooled over the groups, so that the objects' own offsets do not count), 1 for an
+    answer that tracks the light, near 0 for one that stays put; ``bias_x`` / ``bias_y``,
+    the mean of predicted minus true; ``bias_free_median_deg``, the median error once that
+    mean bias is subtracted from every answer (z from the unit norm, toward the camera): a
+    diagnostic that uses the truth, what removing the shift alone would give, never a method."""
+    pred, truth = np.asarray(pred, np.float64).reshape(-1, 3), np.asarray(truth, np.float64).reshape(-1, 3)
+    groups = np.zeros(len(pred), int) if groups is None else np.asarray(groups)
+    out = {}
+    for axis, name in ((0, "x"), (1, "y")):
+        dp = np.concatenate([pred[groups == g, axis] - pred[groups == g, axis].mean() for g in np.unique(groups)])
+        dt = np.concatenate([truth[groups == g, axis] - truth[groups == g, axis].mean() for g in np.unique(groups)])
+        out[f"slope_{name}"] = float(dp @ dt / (dt @ dt)) if dt @ dt > 1e-12 else float("nan")
+        out[f"bias_{name}"] = float(np.mean(pred[:, axis] - truth[:, axis])) if len(pred) else float("nan")
+    shifted = pred.copy()
+    shifted[:, :2] -= (pred[:, :2] - truth[:, :2]).mean(axis=0) if len(pred) else 0.0
+    shifted[:, 2] = np.sqrt(np.clip(1.0 - (shifted[:, :2] ** 2).sum(axis=1), 0.0, 1.0))
+    out["bias_free_median_deg"] = float(np.median(metrics.angle_deg(shifted, truth))) if len(pred) else float("nan")
+    return out
 
 
 def shading_split(pred, truth) -> dict[str, np.ndarray]:
@@ -221,4 +247,6 @@ def summary(scores: dict) -> dict:
         out["image_angle_deg_median"] = float(np.nanmedian(split["image_angle_deg"])) if len(slant) else nan
         out["slant_bias_deg"] = float(np.median(slant)) if len(slant) else nan
         out["slant_error_deg_median"] = float(np.median(np.abs(slant))) if len(slant) else nan
+    if "group" in scores and len(scores["group"]):
+        out |= shrinkage(scores["to_light_camera"], scores["true_to_light_camera"], scores["group"])
     return out
