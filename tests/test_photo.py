@@ -571,3 +571,4 @@ def test_shrinkage_reads_the_slope_and_the_shift_of_answers_pulled_to_an_average
                  "ood": np.zeros(36, bool), "to_light_camera": pred, "true_to_light_camera": truth,
                  "group": list(groups)})
     assert s["slope_x"] == pytest.approx(0.4)
+    assert all(np.isnan(v) for v in shrinkage(np.zeros((0, 3)), np.zeros((0, 3))).values())

@@ -152,17 +152,19 @@ def shrinkage(pred, truth, groups=None) -> dict[str, float]:
     mean bias is subtracted from every answer (z from the unit norm, toward the camera): a
     diagnostic that uses the truth, what removing the shift alone would give, never a method."""
     pred, truth = np.asarray(pred, np.float64).reshape(-1, 3), np.asarray(truth, np.float64).reshape(-1, 3)
+    if not len(pred):
+        return dict.fromkeys(("slope_x", "bias_x", "slope_y", "bias_y", "bias_free_median_deg"), float("nan"))
     groups = np.zeros(len(pred), int) if groups is None else np.asarray(groups)
     out = {}
     for axis, name in ((0, "x"), (1, "y")):
         dp = np.concatenate([pred[groups == g, axis] - pred[groups == g, axis].mean() for g in np.unique(groups)])
         dt = np.concatenate([truth[groups == g, axis] - truth[groups == g, axis].mean() for g in np.unique(groups)])
         out[f"slope_{name}"] = float(dp @ dt / (dt @ dt)) if dt @ dt > 1e-12 else float("nan")
-        out[f"bias_{name}"] = float(np.mean(pred[:, axis] - truth[:, axis])) if len(pred) else float("nan")
+        out[f"bias_{name}"] = float(np.mean(pred[:, axis] - truth[:, axis]))
     shifted = pred.copy()
-    shifted[:, :2] -= (pred[:, :2] - truth[:, :2]).mean(axis=0) if len(pred) else 0.0
+    shifted[:, :2] -= (pred[:, :2] - truth[:, :2]).mean(axis=0)
     shifted[:, 2] = np.sqrt(np.clip(1.0 - (shifted[:, :2] ** 2).sum(axis=1), 0.0, 1.0))
-    out["bias_free_median_deg"] = float(np.median(metrics.angle_deg(shifted, truth))) if len(pred) else float("nan")
+    out["bias_free_median_deg"] = float(np.median(metrics.angle_deg(shifted, truth)))
     return out
 
 
