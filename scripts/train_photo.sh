@@ -15,7 +15,12 @@ RELIGHT=${RELIGHT:-.venv/bin/relight}
     --config scenes/configs/photo_train_backdrop_grey.json --out "$ROOT/photo-train-backdrop-20k" --quiet
 # 2. the camera frame and pipeline augmentation on the EXRs; 28 epochs of 8,000 images, the plateau
 #    schedule (patience 2) drops the learning rate to 1e-5 on its own (after epoch 23 in the shipped run)
-"$RELIGHT" train --data "$ROOT/photo-train-backdrop-20k" --out "$ROOT/runs/photo-bd" --init sid2 \
+#    It starts from a copy of the shipped sid2 weights, so that the run's record names a file that a
+#    later re-shipped sid2 does not change (the card says `--init sid2`: the same bytes).
+[ -f "$ROOT/runs/sid2-base.safetensors" ] || { mkdir -p "$ROOT/runs"
+    cp relight/models/sid2.safetensors "$ROOT/runs/sid2-base.safetensors"; }
+"$RELIGHT" train --data "$ROOT/photo-train-backdrop-20k" --out "$ROOT/runs/photo-bd" \
+    --init "$ROOT/runs/sid2-base.safetensors" \
     --target-frame camera --camera-weight 1 --source exr --augment photo --lr 1e-4 --patience 2 \
     --epochs 28 --epoch-images 8000 --torch-threads 2 --quiet
 # 3. the cones and the out-of-distribution flag, fitted on the val split

@@ -412,5 +412,6 @@ def test_a_named_script_exists_and_makes_what_the_card_says(ship_model):
     assert ship_model.SCRIPTS["photo"] in line and os.path.isfile(path)
     assert ship_model.script_line("sid2") == ""
     text = open(path).read()
-    for opt in ("--target-frame camera", "--source exr", "--augment photo", "--init sid2", "--ood"):
+    for opt in ("--target-frame camera", "--source exr", "--augment photo", "relight/models/sid2.safetensors",
+                "--init", "--ood"):
         assert opt in text, opt
