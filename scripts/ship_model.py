@@ -183,6 +183,12 @@ def script_line(name: str) -> str:
             "its steps:\n") if script else ""
 
 
+def camera_loss_text(s: dict) -> str:
+    """The camera-tilt head's term of the loss, when the run trained one (``--camera-weight``)."""
+    weight = s.get("camera_weight", 0.0)
+    return f" + {weight:g} x the camera-tilt head's loss (`--camera-weight {weight:g}`)" if weight else ""
+
+
 def output_text(config) -> str:
     """How the card says the 7 outputs are read: in the camera frame with the camera head's
     tilt (the photo model), or in the world frame with a given or assumed tilt."""
@@ -625,7 +631,7 @@ Single Image with Deep Regression"), trained by `relight train` on {trained_on}.
 {script_line(name)}{stage_text}- `{train_cmd_line}`
 - Adam lr {s['lr']:g}, ReduceLROnPlateau factor 0.1 (patience {s['plateau_patience']}) on the val loss,
   batch {s['batch_size']}, horizontal flips (pan_rel -> 360 - pan_rel), loss
-  {w['pan']:g} x MSE(pan pair) + {w['tilt']:g} x MSE(tilt pair) + {w['colour']:g} x mean RGB angular error (radians).
+  {w['pan']:g} x MSE(pan pair) + {w['tilt']:g} x MSE(tilt pair) + {w['colour']:g} x mean RGB angular error (radians){camera_loss_text(s)}.
 - {f'Stage {len(stages) + 1}: ' if stages else ''}{meta['trained_epochs_total']} epochs in {meta['train_time_s_all_epochs'] / 60:.0f} min on the 2-core CPU; best val
   loss at epoch {meta['best_epoch']} ({meta['train_time_s_to_best'] / 60:.0f} min). Learning-rate drops: {', '.join(drops) or 'none'}.{stopped}
 - The training history, stage by stage and epoch by epoch: {history}.

@@ -402,6 +402,9 @@ def test_card_says_how_a_camera_head_model_answers(ship_model):
     cmd = ship_model.train_command(s, "DATA", init="sid2")
     assert "--init sid2 " in cmd and "--arch" not in cmd and "--max-minutes" not in cmd
     assert "--arch small" in ship_model.train_command({**s, "init": None}, "DATA")
+    assert ship_model.camera_loss_text({"camera_weight": 0.5}) == \
+        " + 0.5 x the camera-tilt head's loss (`--camera-weight 0.5`)"
+    assert ship_model.camera_loss_text({}) == ""
 
 
 def test_a_named_script_exists_and_makes_what_the_card_says(ship_model):
