@@ -38,7 +38,7 @@ import numpy as np
 from relight import colour, frames
 from relight.scene import albedo, noise, shapes, textures
 from relight.scene.spec import (LEGACY_SAMPLER, MAX_DEPTH, MAX_RES, MAX_SPP, SAMPLERS, CameraSpec, LightSpec,
-                                ObjectSpec, RenderSpec, RoomSpec, SceneSpec)
+                                BackdropSpec, ObjectSpec, RenderSpec, RoomSpec, SceneSpec)
 from relight.errors import ConfigError
 
 
@@ -106,6 +106,11 @@ class GeneratorConfig:
     # Sky fill (0: off, draws as before): a share of scenes gets a uniform sky of the light's colour
     ambient_fraction: float = 0.0
     ambient_ratio: tuple[float, float] = (0.05, 0.5)   # its irradiance over the light's (LightSpec.ambient)
+    # Studio backdrop (0: off, draws as before): a share of void scenes gets a grey backdrop close
+    # behind the objects (BackdropSpec), wherever it does not stand between the light and an object
+    backdrop_fraction: float = 0.0
+    backdrop_albedo: tuple[float, float] = (0.005, 0.2)   # grey albedo, drawn log-uniform
+    backdrop_gap: tuple[float, float] = (0.3, 3.0)        # gap behind the objects, in largest object radii
 
     def __post_init__(self):
         def rng_ok(name, lo_min, hi_max):
@@ -160,8 +165,10 @@ class GeneratorConfig:
             raise ConfigError(f"flash_cone_deg: expected a number in [0, 90], got {self.flash_cone_deg!r}")
         rng_ok("ambient_ratio", 0.0, 10.0)
         rng_ok("void_albedo", 0.0, 1.0)
+        rng_ok("backdrop_albedo", 1e-4, 1.0)
+        rng_ok("backdrop_gap", 0.01, 100.0)
         for name in ("void_fraction", "glossy_fraction", "metal_fraction", "mesh_fraction", "flash_fraction",
-                     "ambient_fraction"):
+                     "ambient_fraction", "backdrop_fraction"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and not isinstance(v, bool) and 0.0 <= v <= 1.0):
                 raise ConfigError(f"{name}: expected a number in [0, 1], got {v!r}")
@@ -214,7 +221,8 @@ LEGACY_CONFIG: dict = {"sampler": LEGACY_SAMPLER, "colour_prior": "hsv", "object
                        # the photo-like, material, flash and sky draws: off before they existed
                        "void_fraction": 0.0, "glossy_fraction": 0.0, "metal_fraction": 0.0,
                        "flash_fraction": 0.0, "flash_cone_deg": 40.0, "ambient_fraction": 0.0,
-                       "ambient_ratio": [0.05, 0.5], "void_albedo": [0.0, VOID_ALBEDO]}
+                       "ambient_ratio": [0.05, 0.5], "void_albedo": [0.0, VOID_ALBEDO],
+                       "backdrop_fraction": 0.0, "backdrop_albedo": [0.005, 0.2], "backdrop_gap": [0.3, 3.0]}
 
 
 BUILTIN_MESHES = "builtin"   # mesh_dir value: the meshes shipped in relight/assets/meshes
@@ -330,23 +338,28 @@ def sample_scene(cfg: GeneratorConfig, dataset_seed: int, index: int) -> SceneSp
             part_reflectances=tuple(colours) if n_parts > 1 else ()))
     render = RenderSpec(res=cfg.res, spp=cfg.render_spp, max_depth=cfg.max_depth,
                         seed=int(rng.integers(0, 2 ** 31)), sampler=cfg.sampler)
+    void = False
     if cfg.fov_range_deg is not None or cfg.view_halfwidth_m is not None or cfg.void_fraction > 0:
-        camera, room = _photo_draws(rng, cfg, camera, room)   # drawn last: other draws unchanged
+        camera, room, void = _photo_draws(rng, cfg, camera, room)   # drawn last: other draws unchanged
     if cfg.glossy_fraction > 0 or cfg.metal_fraction > 0:
         objects = [_material_draws(rng, cfg, o) for o in objects]   # after the photo draws
     if cfg.flash_fraction > 0 and rng.uniform() < cfg.flash_fraction:   # after the material draws
         light = _flash_light(rng, cfg, camera, light)
     if cfg.ambient_fraction > 0 and rng.uniform() < cfg.ambient_fraction:   # after the flash draw
         light = dataclasses.replace(light, ambient=float(np.round(rng.uniform(*cfg.ambient_ratio), 4)))
+    backdrop = None
+    if void and cfg.backdrop_fraction > 0 and rng.uniform() < cfg.backdrop_fraction:   # after the sky draw
+        backdrop = _backdrop_draw(rng, cfg, camera, light, objects)
     return SceneSpec(id=f"{index:06d}", camera=camera, light=light, room=room,
-                     objects=tuple(objects), render=render, colour_prior=prior)
+                     objects=tuple(objects), render=render, colour_prior=prior, backdrop=backdrop)
 
 
 def _photo_draws(rng: np.random.Generator, cfg: GeneratorConfig, camera: CameraSpec,
-                 room: RoomSpec) -> tuple[CameraSpec, RoomSpec]:
+                 room: RoomSpec) -> tuple[CameraSpec, RoomSpec, bool]:
     """The photo-like draws of one image (after all others): field of view, camera
     distance from the view's half-width at the centre (``r = w / tan(fov / 2)``, at least
-    :data:`MIN_CAMERA_R_M`), and a void room (walls and floor near-black, one grey each)."""
+    :data:`MIN_CAMERA_R_M`), and a void room (walls and floor near-black, one grey each;
+    the flag says whether it was drawn)."""
     fov = camera.fov_deg
     if cfg.fov_range_deg is not None:
         fov = float(np.round(rng.uniform(*cfg.fov_range_deg), 2))
@@ -361,7 +374,47 @@ def _photo_draws(rng: np.random.Generator, cfg: GeneratorConfig, camera: CameraS
             return {"kind": "checker", "seed": 0, "cells": 2, "angle": 0.0, "colors": [[grey] * 3, [grey] * 3]}
         room = dataclasses.replace(room, wall_textures=tuple(dark() for _ in room.wall_textures),
                                    floor_texture=dark())
-    return camera, room
+        return camera, room, True
+    return camera, room, False
+
+
+BACKDROP_TURN_DEG = 20.0   # a backdrop faces the camera to within this many degrees of azimuth
+BACKDROP_MAX_M = 200.0     # cap on a backdrop's height and half-width
+
+
+def _backdrop_draw(rng: np.random.Generator, cfg: GeneratorConfig, camera: CameraSpec, light: LightSpec,
+                   objects: list[ObjectSpec]) -> BackdropSpec | None:
+    """A studio backdrop behind the objects as the camera sees them (every draw made, then
+    None if it would stand between the light and an object: a studio never lights through
+    its backdrop, and the label must stay the light that lights the objects).
+
+    It faces the camera's azimuth to within :data:`BACKDROP_TURN_DEG`, stands a gap of
+    ``backdrop_gap`` largest object radii behind the farthest object, reaches 0.7-1.5
+    times the height at which the image's top edge meets it (so that it mostly fills the
+    view behind the objects, its top edge sometimes in view) and is 1.2-2 times as wide
+    as the view there; grey albedo log-uniform in ``backdrop_albedo``."""
+    pan = float(np.round(frames.wrap360(camera.pan_deg + 180.0 + rng.uniform(-1, 1) * BACKDROP_TURN_DEG), 3))
+    out = frames.direction(pan, 0.0)
+    size = max(o.size_m for o in objects)
+    behind = max([0.0] + [float(np.dot(out[:2], o.position_m)) + o.size_m for o in objects])
+    distance = float(np.round(behind + size * rng.uniform(*cfg.backdrop_gap), 4))
+    cam = frames.camera_to_world(camera.tilt_deg, camera.r_m, camera.pan_deg)
+    half_fov = math.tan(math.radians(camera.fov_deg) / 2.0)
+    top_ray = -cam[:3, 2] + half_fov * cam[:3, 1]        # the image's top edge (square images)
+    origin = cam[:3, 3]
+    away = float(np.dot(top_ray, out))                    # > 0: the top edge's ray runs toward the backdrop
+    reach = (distance - float(np.dot(origin, out))) / away if away > 0 else math.inf
+    z_top = origin[2] + reach * top_ray[2] if math.isfinite(reach) else BACKDROP_MAX_M
+    height = float(np.round(min(BACKDROP_MAX_M, max(2.0 * size, z_top * rng.uniform(0.7, 1.5))), 3))
+    view_m = (float(np.linalg.norm(origin[:2])) + distance) * half_fov
+    half_width = float(np.round(min(BACKDROP_MAX_M, view_m * rng.uniform(1.2, 2.0) + size), 3))
+    albedo_ = float(np.round(math.exp(rng.uniform(*np.log(cfg.backdrop_albedo))), 4))
+    backdrop = BackdropSpec(pan_deg=pan, distance_m=distance, half_width_m=half_width, height_m=height,
+                            albedo=albedo_)
+    points = [(o.position_m[0], o.position_m[1], z) for o in objects for z in (0.0, o.size_m)]
+    if any(backdrop.blocks(p, light.position_m) for p in points):
+        return None
+    return backdrop
 
 
 # Object materials. A glossy object: the diffuse plus a white GGX lobe of weight GLOSSY_WEIGHT

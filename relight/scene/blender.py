@@ -5,7 +5,8 @@ exactly as :mod:`relight.scene.build` builds it for Mitsuba:
 
 * floor and walls: flat quads with the same corners and UVs as Mitsuba's ``rectangle``
   (``uv = ((x + 1) / 2, (y + 1) / 2)`` in its local [-1, 1]^2, the floor's UVs scaled so
-  the texture repeats every ``FLOOR_TILE_M``), Lambert (Diffuse BSDF, roughness 0);
+  the texture repeats every ``FLOOR_TILE_M``), Lambert (Diffuse BSDF, roughness 0); a
+  studio backdrop (``spec.backdrop``): one more such quad, of its uniform grey albedo;
 * textures: float images used as data ("Non-Color", Mitsuba's ``raw: True``), bilinear,
   repeating; texture row 0 at v = 0 in both renderers;
 * objects: the same world-space vertices and per-vertex normals (custom normals,
@@ -269,6 +270,10 @@ def export_blender(spec: SceneSpec, blend_path: str | os.PathLike | None = None,
         img = _image(bpy, f"wall{k}", build.texture(room.wall_textures[k], res))
         mat = _material(bpy, f"wall{k}", (1, 1, 1), 0.0, img)
         scene.collection.objects.link(_mesh_object(bpy, f"wall{k}", corners, [(0, 1, 2, 3)], mat, uv=uv))
+    if spec.backdrop is not None:   # Mitsuba's "diffuse": Lambert, Cycles' Diffuse BSDF of roughness 0
+        corners, uv = rectangle_quad(spec.backdrop.to_world())
+        mat = _material(bpy, "backdrop", [spec.backdrop.albedo] * 3, 0.0)
+        scene.collection.objects.link(_mesh_object(bpy, "backdrop", corners, [(0, 1, 2, 3)], mat, uv=uv))
     for i, obj in enumerate(spec.objects):
         mesh = build.object_mesh(obj)
         v, n = build._object_vertices(obj, mesh)

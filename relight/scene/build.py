@@ -60,6 +60,7 @@ class TemplateKey:
     envmap_shape: tuple[int, int] | None = None   # (H, W): an ``envmap`` emitter, no point light
     glossy: bool = False    # object BSDFs blend the diffuse with a specular lobe (some object has gloss)
     sky: bool = False       # a uniform environment emitter (the light's sky fill, ``light.ambient`` > 0)
+    backdrop: bool = False  # a studio backdrop rectangle (``spec.backdrop``); scenes without one: no shape
 
 
 def object_mesh(obj: ObjectSpec) -> shapes.Mesh:
@@ -129,7 +130,8 @@ def template_key(spec: SceneSpec, meshes: list[shapes.Mesh],
     return TemplateKey(max(N_WALL_SLOTS, spec.room.n_walls), spec.render.res, spec.render.max_depth,
                        spec.room.texture_res, tuple(slots), spec.render.sampler,
                        None if envmap_shape is None else (int(envmap_shape[0]), int(envmap_shape[1])),
-                       any(o.gloss > 0 for o in spec.objects), envmap_shape is None and spec.light.ambient > 0)
+                       any(o.gloss > 0 for o in spec.objects), envmap_shape is None and spec.light.ambient > 0,
+                       spec.backdrop is not None)
 
 
 def wall_to_world(k: int, n_walls: int, inradius_m: float, height_m: float,
@@ -208,6 +210,9 @@ class SceneTemplate:
         for k in range(key.wall_slots):
             scene[f"wall{k}"] = {"type": "rectangle", "to_world": mi.ScalarTransform4f(np.eye(4)),
                                  "bsdf": {"type": "diffuse", "reflectance": bitmap()}}
+        if key.backdrop:
+            scene["backdrop"] = {"type": "rectangle", "to_world": mi.ScalarTransform4f(np.eye(4)),
+                                 "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.5] * 3}}}
         for i, (n_vertices, n_faces) in enumerate(key.slots):
             props = mi.Properties()
             diffuse = {"type": rough_bsdf.PLUGIN, "roughness": 0.5,
@@ -254,6 +259,9 @@ class SceneTemplate:
                 parked = np.diag([1e-3, 1e-3, 1.0, 1.0])
                 parked[2, 3] = HIDDEN_DEPTH_M
                 p[f"wall{k}.to_world"] = mi.AffineTransform4f(parked)
+        if self.key.backdrop:
+            p["backdrop.to_world"] = mi.AffineTransform4f(spec.backdrop.to_world())
+            p["backdrop.bsdf.reflectance.value"] = mi.Color3f(*([float(spec.backdrop.albedo)] * 3))
         for i in range(len(self.key.slots)):
             if i < len(spec.objects):
                 obj, mesh = spec.objects[i], meshes[i]

@@ -11,7 +11,7 @@ exactly), never as pixels or vertices; user meshes are stored as a file path.
 from __future__ import annotations
 
 __all__ = [
-    "SCENE_FORMAT", "CameraSpec", "LightSpec", "RoomSpec", "ObjectSpec", "SAMPLERS", "LEGACY_SAMPLER",
+    "SCENE_FORMAT", "CameraSpec", "LightSpec", "RoomSpec", "BackdropSpec", "ObjectSpec", "SAMPLERS", "LEGACY_SAMPLER",
     "RenderSpec", "SceneSpec", "load_scene",
 ]
 
@@ -151,6 +151,55 @@ class RoomSpec:
 
 
 @dataclass(frozen=True)
+class BackdropSpec:
+    """A studio backdrop: one upright grey rectangle standing on the floor close behind
+    the objects (optional; a scene without one has no field and renders as before).
+
+    Its centre line is at horizontal distance ``distance_m`` from the scene centre in the
+    direction ``pan_deg`` (world frame, as a light's pan); it faces the centre, is
+    ``2 * half_width_m`` wide and ``height_m`` tall, and reflects diffusely with the grey
+    albedo ``albedo`` (black velvet 0.01, dark grey card 0.1-0.2).
+    """
+    pan_deg: float
+    distance_m: float
+    half_width_m: float
+    height_m: float
+    albedo: float
+
+    def __post_init__(self):
+        _finite("backdrop", self.pan_deg, self.distance_m, self.half_width_m, self.height_m, self.albedo)
+        if min(self.distance_m, self.half_width_m, self.height_m) <= 0 or not 0.0 <= self.albedo <= 1.0:
+            raise SceneFileError("backdrop: distance_m, half_width_m and height_m > 0 and albedo in [0, 1] "
+                                 "expected")
+
+    def to_world(self) -> np.ndarray:
+        """4x4 matrix placing Mitsuba's ``rectangle`` ([-1,1]^2, normal +z) as the
+        backdrop: normal toward the scene centre, bottom edge on the floor."""
+        outward = frames.direction(self.pan_deg, 0.0)
+        inward, up = -outward, np.array([0.0, 0.0, 1.0])
+        m = np.eye(4)
+        m[:3, 0] = np.cross(up, inward) * self.half_width_m
+        m[:3, 1] = up * self.height_m / 2.0
+        m[:3, 2] = inward
+        m[:3, 3] = outward * self.distance_m + up * self.height_m / 2.0
+        return m
+
+    def blocks(self, start_m, end_m) -> bool:
+        """Whether the segment from ``start_m`` to ``end_m`` (world points, metres)
+        passes through the backdrop."""
+        m = self.to_world()
+        centre, normal = m[:3, 3], m[:3, 2]
+        a, b = np.asarray(start_m, float), np.asarray(end_m, float)
+        da, db = float((a - centre) @ normal), float((b - centre) @ normal)
+        if da * db > 0 or da == db:   # both ends on one side (or the segment in the plane)
+            return False
+        local = a + (b - a) * (da / (da - db)) - centre
+        across = local @ (m[:3, 0] / self.half_width_m)
+        along_up = local @ (m[:3, 1] / (self.height_m / 2.0))
+        return abs(across) <= self.half_width_m and abs(along_up) <= self.height_m / 2.0
+
+
+@dataclass(frozen=True)
 class ObjectSpec:
     """One object resting on the floor.
 
@@ -257,6 +306,7 @@ class SceneSpec:
     objects: tuple[ObjectSpec, ...]
     render: RenderSpec = field(default_factory=RenderSpec)
     colour_prior: str | None = None   # surface-colour prior that drew the albedos (metadata)
+    backdrop: BackdropSpec | None = None   # a studio backdrop close behind the objects (optional)
     format: str = SCENE_FORMAT
 
     def __post_init__(self):
@@ -287,6 +337,8 @@ class SceneSpec:
     # --- JSON ---------------------------------------------------------------------
     def to_dict(self) -> dict:
         d = dataclasses.asdict(self)
+        if d["backdrop"] is None:   # no backdrop: no field, as in files written before it
+            del d["backdrop"]
         if not d["light"]["ambient"]:   # no sky fill: no field, as in files written before it
             del d["light"]["ambient"]
         for o in d["objects"]:   # one-colour, matte objects: no fields, as in files written before them
@@ -318,6 +370,7 @@ class SceneSpec:
                               for o in d["objects"]),
                 render=RenderSpec(**d.get("render", {})),
                 colour_prior=d.get("colour_prior"),
+                backdrop=None if d.get("backdrop") is None else BackdropSpec(**d["backdrop"]),
             )
         except (KeyError, TypeError) as exc:
             raise SceneFileError(f"malformed scene description: {exc}") from None
