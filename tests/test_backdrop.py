@@ -102,32 +102,51 @@ def test_backdrop_renders_as_lambert_closed_form(mi):
 
 
 def test_backdrop_draws_come_last_and_never_shade_the_objects():
+    """Every draw but the backdrop (and a light it would hide) as without it; only void
+    scenes get one, behind every object, facing the camera; no object is shaded from the
+    light by it; a hidden light moves to its mirror direction (same tilt); and having a
+    backdrop does not depend on where the light is."""
     photo = dict(preset="photo", path=None)
     plain = GeneratorConfig.from_file(**photo, void_fraction=0.6)
     studio = GeneratorConfig.from_file(**photo, void_fraction=0.6, backdrop_fraction=0.8,
                                        backdrop_albedo=(0.01, 0.1))
-    n_void = n_backdrop = 0
+    n_void = n_backdrop = n_moved = 0
     for i in range(80):
         a, b = sample_scene(plain, SEED, i), sample_scene(studio, SEED, i)
         assert a.backdrop is None
-        assert dataclasses.replace(b, backdrop=None) == a          # every other draw as before
+        assert dataclasses.replace(b, backdrop=None, light=a.light) == a          # every other draw as before
         void = a.room.floor_texture["colors"][0] == a.room.floor_texture["colors"][1] \
             and a.room.floor_texture.get("cells") == 2 and a.room.floor_texture["kind"] == "checker"
         n_void += void
         if b.backdrop is None:
+            assert b.light == a.light
             continue
         assert void                                                 # only void scenes get one
         n_backdrop += 1
         bd = b.backdrop
         assert 0.01 <= bd.albedo <= 0.1
-        out = frames.direction(bd.pan_deg, 0.0)[:2]
-        to_camera = frames.direction(b.camera.pan_deg, 0.0)[:2]
+        out = frames.direction(bd.pan_deg, 0.0)
+        to_camera = frames.direction(b.camera.pan_deg, 0.0)
         assert float(out @ to_camera) <= -math.cos(math.radians(20.0)) + 1e-9   # faces the camera
         for o in b.objects:
-            assert float(out @ np.asarray(o.position_m)) + o.size_m < bd.distance_m   # behind every object
+            assert float(out[:2] @ np.asarray(o.position_m)) + o.size_m < bd.distance_m   # behind every object
             for z in (0.0, 0.5 * o.size_m, o.size_m):
                 assert not bd.blocks((*o.position_m, z), b.light.position_m)
-    assert n_void >= 30 and n_backdrop >= 0.5 * n_void
+        if b.light != a.light:
+            n_moved += 1
+            assert dataclasses.replace(b.light, pan_deg=a.light.pan_deg) == a.light   # only its azimuth
+            was, now = frames.direction(a.light.pan_deg, 0.0), frames.direction(b.light.pan_deg, 0.0)
+            assert float(was @ out) > 0 and float(now @ out) == pytest.approx(-float(was @ out), abs=1e-3)
+            assert float(now @ (np.cross(out, [0, 0, 1]))) == pytest.approx(
+                float(was @ (np.cross(out, [0, 0, 1]))), abs=1e-3)                       # mirrored across it
+    assert n_void >= 30 and n_backdrop >= 0.5 * n_void and n_moved >= 1
+    # whether a scene has a backdrop does not depend on its light (none is ever dropped):
+    # with backdrop_fraction 1 every void scene has one
+    every = GeneratorConfig.from_file(**photo, void_fraction=0.6, backdrop_fraction=1.0)
+    for i in range(30):
+        a, b = sample_scene(plain, SEED, i), sample_scene(every, SEED, i)
+        assert (b.backdrop is not None) == (a.room != sample_scene(GeneratorConfig.from_file(
+            **photo, void_fraction=0.0), SEED, i).room)
     with pytest.raises(ConfigError):
         GeneratorConfig(backdrop_fraction=1.5)
     with pytest.raises(ConfigError):

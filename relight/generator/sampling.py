@@ -107,7 +107,8 @@ class GeneratorConfig:
     ambient_fraction: float = 0.0
     ambient_ratio: tuple[float, float] = (0.05, 0.5)   # its irradiance over the light's (LightSpec.ambient)
     # Studio backdrop (0: off, draws as before): a share of void scenes gets a grey backdrop close
-    # behind the objects (BackdropSpec), wherever it does not stand between the light and an object
+    # behind the objects (BackdropSpec); a light it would hide from an object moves to its mirror
+    # direction in front of it
     backdrop_fraction: float = 0.0
     backdrop_albedo: tuple[float, float] = (0.005, 0.2)   # grey albedo, drawn log-uniform
     backdrop_gap: tuple[float, float] = (0.3, 3.0)        # gap behind the objects, in largest object radii
@@ -349,7 +350,7 @@ def sample_scene(cfg: GeneratorConfig, dataset_seed: int, index: int) -> SceneSp
         light = dataclasses.replace(light, ambient=float(np.round(rng.uniform(*cfg.ambient_ratio), 4)))
     backdrop = None
     if void and cfg.backdrop_fraction > 0 and rng.uniform() < cfg.backdrop_fraction:   # after the sky draw
-        backdrop = _backdrop_draw(rng, cfg, camera, light, objects)
+        backdrop, light = _backdrop_draw(rng, cfg, camera, light, objects)
     return SceneSpec(id=f"{index:06d}", camera=camera, light=light, room=room,
                      objects=tuple(objects), render=render, colour_prior=prior, backdrop=backdrop)
 
@@ -383,16 +384,20 @@ BACKDROP_MAX_M = 200.0     # cap on a backdrop's height and half-width
 
 
 def _backdrop_draw(rng: np.random.Generator, cfg: GeneratorConfig, camera: CameraSpec, light: LightSpec,
-                   objects: list[ObjectSpec]) -> BackdropSpec | None:
-    """A studio backdrop behind the objects as the camera sees them (every draw made, then
-    None if it would stand between the light and an object: a studio never lights through
-    its backdrop, and the label must stay the light that lights the objects).
+                   objects: list[ObjectSpec]) -> tuple[BackdropSpec, LightSpec]:
+    """A studio backdrop behind the objects as the camera sees them, and the light.
 
     It faces the camera's azimuth to within :data:`BACKDROP_TURN_DEG`, stands a gap of
     ``backdrop_gap`` largest object radii behind the farthest object, reaches 0.7-1.5
     times the height at which the image's top edge meets it (so that it mostly fills the
     view behind the objects, its top edge sometimes in view) and is 1.2-2 times as wide
-    as the view there; grey albedo log-uniform in ``backdrop_albedo``."""
+    as the view there; grey albedo log-uniform in ``backdrop_albedo``.
+
+    A studio never lights through its backdrop, and the label must stay the light that
+    lights the objects: a light the backdrop would hide from any object (its base or top)
+    moves to its mirror direction across the backdrop's plane (same tilt, now on the
+    camera's side of it). The backdrop itself never depends on the light: whether a void
+    scene has one says nothing about where its light is."""
     pan = float(np.round(frames.wrap360(camera.pan_deg + 180.0 + rng.uniform(-1, 1) * BACKDROP_TURN_DEG), 3))
     out = frames.direction(pan, 0.0)
     size = max(o.size_m for o in objects)
@@ -413,8 +418,10 @@ def _backdrop_draw(rng: np.random.Generator, cfg: GeneratorConfig, camera: Camer
                             albedo=albedo_)
     points = [(o.position_m[0], o.position_m[1], z) for o in objects for z in (0.0, o.size_m)]
     if any(backdrop.blocks(p, light.position_m) for p in points):
-        return None
-    return backdrop
+        # the mirror azimuth across the plane whose normal is at pan: 2 * pan + 180 - light pan
+        light = dataclasses.replace(light, pan_deg=float(np.round(frames.wrap360(
+            2.0 * pan + 180.0 - light.pan_deg), 2)))
+    return backdrop, light
 
 
 # Object materials. A glossy object: the diffuse plus a white GGX lobe of weight GLOSSY_WEIGHT
