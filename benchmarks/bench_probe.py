@@ -27,6 +27,8 @@ Errors are in degrees; a failure counts as 180.
     python benchmarks/bench_probe.py --set ~/relight-data/issue-29/set --make 40   # once (~15 min)
     python benchmarks/bench_probe.py --set ~/relight-data/issue-29/set [--qa DIR]
     python benchmarks/bench_probe.py --set ~/relight-data/issue-29/set --floor   # what 8-bit leaves
+    python benchmarks/bench_probe.py --set ~/relight-data/issue-29/set --refilter DIR   # then --set DIR:
+    #   the Cycles renders as Blender's default pixel filter (Blackman-Harris, 1.5 px) would give them
 """
 from __future__ import annotations
 
@@ -53,6 +55,54 @@ PNG_CLIP_SHARE = 0.02
 def _angle_deg(a, b) -> float:
     from relight.metrics import angle_deg
     return float(angle_deg(a, b))
+
+
+BH_WIDTH_PX = 1.5   # Blender's default pixel filter: Blackman-Harris of width 1.5, which Cycles
+#                     spreads over twice that (film.cpp's filter table): support +-1.5 px
+
+
+def blackman_harris_weights(width_px: float = BH_WIDTH_PX) -> np.ndarray:
+    """1-D weights of Cycles' Blackman-Harris pixel filter over whole-pixel offsets
+    ``-2..2``: the window (support ``+-width_px``) integrated in closed form over each
+    offset's pixel ``[k - 0.5, k + 0.5]``, normalised to sum 1 (the filter is separable)."""
+    a = (0.35875, -0.48829, 0.14128, -0.01168)
+    span = 2.0 * width_px
+
+    def antiderivative(x):   # of sum_j a_j cos(2 pi j (x / span + 1/2)) on the support
+        x = np.clip(x, -width_px, width_px)
+        u = x / span + 0.5
+        return a[0] * x + sum(a[j] * np.sin(2 * np.pi * j * u) * span / (2 * np.pi * j) for j in (1, 2, 3))
+
+    k = np.arange(-2, 3, dtype=float)
+    w = antiderivative(k + 0.5) - antiderivative(k - 0.5)
+    return w / w.sum()
+
+
+def refilter_set(folder: str, out: str) -> None:
+    """A copy of the set's Cycles part as Blender's default pixel filter would render it:
+    each linear Cycles EXR (rendered with a 1 px box, as Mitsuba's) convolved with the
+    cell-integrated Blackman-Harris weights in x and y, then the 8-bit PNG re-encoded at
+    the scene's exposure. An approximation (the box-filtered pixels are filtered again),
+    which tells whether the light's sub-pixel position survives 8-bit clipping when a
+    wider filter spreads it into unclipped neighbours."""
+    from scipy.ndimage import convolve1d
+
+    from relight.fileio import atomic_write
+    from relight.imageio import read_exr, write_exr, write_png
+    if os.path.abspath(out) == os.path.abspath(folder):
+        raise SystemExit("--refilter: the output folder must differ from --set")
+    os.makedirs(out, exist_ok=True)
+    w = blackman_harris_weights()
+    for path in sorted(glob.glob(os.path.join(folder, "probe[0-9][0-9][0-9].json"))):
+        base = os.path.join(out, os.path.basename(path)[:-5])
+        with open(path) as f:
+            d = json.load(f)
+        image = read_exr(path[:-5] + ".cycles.exr")
+        image = convolve1d(convolve1d(image, w, axis=0, mode="nearest"), w, axis=1, mode="nearest")
+        write_exr(base + ".cycles.exr", image.astype(np.float32))
+        write_png(base + ".cycles.png", image, exposure=d["png_exposure"])
+        atomic_write(base + ".json", lambda tmp, d=d: open(tmp, "w").write(json.dumps(d, indent=1)))
+    print(f"wrote the Blackman-Harris copy of {folder} to {out}")
 
 
 def make_set(folder: str, count: int, spp: int) -> None:
@@ -258,7 +308,13 @@ def main() -> None:
     ap.add_argument("--floor", action="store_true",
                     help="only the 8-bit floor: the light's position from the Cycles EXR's clipped pixels")
     ap.add_argument("--worst", type=at.int_in(0, 10_000, "a count"), default=8, help="list the worst N results")
+    ap.add_argument("--refilter", default=None, metavar="DIR",
+                    help="only write a copy of the set's Cycles renders under Blender's default pixel filter "
+                         "(Blackman-Harris 1.5 px) to DIR; then run with --set DIR --renderers cycles")
     args = ap.parse_args()
+    if args.refilter:
+        refilter_set(args.set, args.refilter)
+        return
     if args.make:
         make_set(args.set, args.make, args.spp)
     if args.floor:

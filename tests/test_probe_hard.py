@@ -226,6 +226,26 @@ def test_a_bright_surface_touching_a_small_highlight_does_not_pull_it():
     assert _angle(found.to_light, light) < DIR_TOL_DEG
 
 
+def test_a_light_beside_clipped_surroundings_is_still_located():
+    # the light's small clipped core sits beside a clipped arc (a lamp's shade, a bright
+    # window frame) joined to it by bright pixels: the level around the core is the clip
+    # level itself, so nothing stands above it; the core's own pixels place the light
+    # (this raised "no highlight on the chrome sphere" before)
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 60.0, 10.0)
+    light = np.array([0.3, 0.4, 0.87]) / np.linalg.norm([0.3, 0.4, 0.87])
+    spot, _ = pg.predict_highlight(cam, sphere, light)
+    image = _quantise(_render(cam, sphere, light, light_radius_deg=0.01))   # the sphere, no highlight
+    yy, xx = np.mgrid[0:H, 0:W] + 0.5
+    dist = np.hypot(xx - spot[0], yy - spot[1])
+    image[dist < 4.5] = 0.6                                  # bright surroundings joining the two
+    image[(dist >= 4.5) & (dist < 6.5) & (xx > spot[0])] = 1.0   # the clipped arc, on one side
+    image[dist < 1.1] = 1.0                                  # the light's core: the pixels at the spot
+    found = pg.locate_highlight(image, cam, sphere, clip_level=1.0)
+    assert math.dist(found.pixel, spot) < 0.5
+    assert _angle(found.to_light, light) < 3.0
+
+
 # ------------------------------------------------------------------ sub-pixel localisation
 def _blob(x0, y0, sigma, amplitude):
     """A lens-blurred point highlight: a Gaussian of ``sigma`` px at ``(x0, y0)``,
@@ -672,3 +692,28 @@ def test_the_chrome_pick_reads_a_clipped_highlight_contrast_as_a_lower_bound():
     clipped = dict(base, circle=(20.0, 20.0, 15.0), contrast=2.7, clip_contrast=3.3)
     plain = dict(base, circle=(80.0, 20.0, 15.0), contrast=3.0)
     assert detect.pick_sphere([plain, clipped], "chrome") is clipped
+
+
+def _bench_probe():
+    import importlib.util
+    spec = importlib.util.spec_from_file_location(
+        "bench_probe", os.path.join(os.path.dirname(__file__), "..", "benchmarks", "bench_probe.py"))
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    return bench
+
+
+def test_blackman_harris_pixel_weights_match_the_window():
+    """The cell-integrated weights of the refiltered set: symmetric, summing to 1, and each
+    the window's integral over its pixel (checked by a fine midpoint sum), the outer pixels
+    (beyond +-1.5 px) empty."""
+    w = _bench_probe().blackman_harris_weights(1.5)
+    x = np.linspace(-2.5, 2.5, 500_001)[:-1] + 5.0 / 1_000_000
+    span = 3.0
+    u = x / span + 0.5
+    window = np.where(np.abs(x) <= 1.5, 0.35875 - 0.48829 * np.cos(2 * np.pi * u) + 0.14128 * np.cos(4 * np.pi * u)
+                      - 0.01168 * np.cos(6 * np.pi * u), 0.0)
+    cells = np.array([window[(x >= k - 0.5) & (x < k + 0.5)].sum() for k in range(-2, 3)])
+    np.testing.assert_allclose(w, cells / cells.sum(), atol=1e-6)
+    np.testing.assert_allclose(w, w[::-1], atol=1e-12)
+    assert w.sum() == pytest.approx(1.0) and w[2] > 0.5 and w[0] == 0.0 and w[1] > 0.1

@@ -472,6 +472,10 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
         ring = ndimage.binary_dilation(grown, square, iterations=2) & usable & ~grown & (labels == 0)
         background = float(np.median(crop[ring])) if ring.sum() >= 4 else floor
     weights = np.clip(crop - background, 0.0, None) * grown
+    if not (weights > 0).any():
+        # the core merged with surroundings as bright as itself (all clipped): nothing
+        # stands above the level around it, so the core's own pixels, equally weighted
+        weights = best_core.astype(float)
     ys, xs = np.nonzero(weights > 0)
     w = weights[ys, xs] * _solid_angle_weights(camera, sphere, xs + x0 + 0.5, ys + y0 + 0.5)
     total = refl[ys, xs] * w[:, None]
