@@ -83,6 +83,7 @@ CHROME_MIN_EXCESS = 0.15       # above what one light on a diffuse sphere gives,
 CHROME_MIN_RESIDUAL = 0.25     # and no smooth shading model fits it (it mirrors its surroundings: a
                                # diffuse ball with a hot pixel fits within 0.2; on the probe set
                                # chrome spheres measure 0.29-1.9, gray and coloured balls 0.02-0.48)
+HDR_CLIP_SHARE = 0.02          # detection in a linear HDR image: exposed so that its brightest 2% clip
 DIFFUSE_MAX_RESIDUAL = 0.3     # diffuse: a shading model fits within 30% rms
 TRIM_FRACTION = 0.01           # ... leaving out the worst 1% of pixels (glints, hot pixels)
 
@@ -472,6 +473,14 @@ def hough_circles(image: np.ndarray, clip_level: float | None = None, screen=Non
     return found[:keep] + taken + chosen
 
 
+def exposed_like_a_camera(image: np.ndarray) -> np.ndarray:
+    """A linear HDR image as a camera's auto exposure would record it: scaled so that its
+    brightest :data:`HDR_CLIP_SHARE` of pixels (by mean channel) clip, clipped at 1."""
+    img = np.asarray(image, np.float64)
+    level = float(np.percentile(img[..., :3].mean(-1), 100.0 * (1.0 - HDR_CLIP_SHARE)))
+    return np.clip(img / max(level, 1e-12), 0.0, 1.0)
+
+
 def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = None) -> list[dict]:
     """Refined sphere candidates with their features: ``sphere``, ``edge_support``,
     ``contrast``, ``residual``, ``chrome`` and ``diffuse`` (bool), best supported first.
@@ -480,6 +489,8 @@ def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = N
     supported one (a highlight or a reflection). ``clip_level``: the image's (1.0 for an
     integer file, None for a linear one that does not clip): a clipped highlight's contrast
     is then read as a lower bound (:func:`hough_circles`, :func:`sphere_features`)."""
+    if clip_level is None:   # linear HDR: look for spheres in the image a camera would have taken
+        image, clip_level = exposed_like_a_camera(image), 1.0
     smoothed = _edge_image(image)
     out: list[dict] = []
     refined: list[tuple] = []
