@@ -12,6 +12,17 @@ if REPO not in sys.path:
     sys.path.insert(0, REPO)
 
 
+def load_script(relpath: str):
+    """A repository script (``benchmarks/x.py``, ``scripts/x.py``) loaded as a module, as
+    the tests of its helpers need it (the folders are not packages)."""
+    import importlib.util
+    name = os.path.splitext(os.path.basename(relpath))[0]
+    spec = importlib.util.spec_from_file_location(name, os.path.join(REPO, relpath))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 @pytest.fixture(scope="session")
 def mi():
     from relight import backend

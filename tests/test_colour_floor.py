@@ -5,6 +5,8 @@ import numpy as np
 
 from relight.scene.albedo import OBJECT_RANGE, box_direction_logpdf
 
+from conftest import load_script
+
 
 def _unit(v):
     v = np.asarray(v, np.float64)
@@ -45,17 +47,13 @@ def test_bayes_floor_falls_with_more_surfaces():
 def test_colour_error_by_object_parts(mi, tmp_path):
     """bench_colour_floor's breakdown by the coloured parts in each scene (its scene
     file) against the parts counted here, on an evaluation written by hand."""
-    import importlib.util
     import os
 
     from relight.dataset import read_manifest
     from relight.generator.run import generate
     from relight.generator.sampling import GeneratorConfig
     from relight.scene.spec import load_scene
-    spec = importlib.util.spec_from_file_location(
-        "bench_colour_floor", os.path.join(os.path.dirname(__file__), "..", "benchmarks", "bench_colour_floor.py"))
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_script("benchmarks/bench_colour_floor.py")
     data = tmp_path / "data"
     generate(data, 6, seed=3, cfg=GeneratorConfig(res=16, spp=2, object_parts=(2, 5)), progress=False)
     ids = [r["id"] for r in read_manifest(data)]
@@ -107,7 +105,6 @@ def test_scene_floor_counts_the_surfaces_an_image_shows(mi, tmp_path):
     """bench_colour_floor --floors: the albedo render of a mosaic scene is matched to the
     scene file's colours (each surface seen is one of the file's, most pixels match one),
     and a scene of many surfaces has a floor far below the prior's spread."""
-    import importlib.util
     import os
 
     from relight.dataset import read_manifest
@@ -115,10 +112,7 @@ def test_scene_floor_counts_the_surfaces_an_image_shows(mi, tmp_path):
     from relight.scene.build import SceneBuilder
     from relight.generator.sampling import GeneratorConfig
     from relight.scene.spec import load_scene
-    spec = importlib.util.spec_from_file_location(
-        "bench_colour_floor", os.path.join(os.path.dirname(__file__), "..", "benchmarks", "bench_colour_floor.py"))
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_script("benchmarks/bench_colour_floor.py")
     data = tmp_path / "data"
     generate(data, 2, seed=8, cfg=GeneratorConfig(res=48, spp=1, backgrounds="mosaic", object_parts=(2, 4)),
              progress=False)
@@ -172,13 +166,7 @@ def test_shared_hue_likelihood_integrates_the_base_hue():
 
 
 def _bench():
-    import importlib.util
-    import os
-    spec = importlib.util.spec_from_file_location(
-        "bench_colour_floor", os.path.join(os.path.dirname(__file__), "..", "benchmarks", "bench_colour_floor.py"))
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
-    return bench
+    return load_script("benchmarks/bench_colour_floor.py")
 
 
 def test_library_likelihood_identifies_the_light_of_a_known_background():

@@ -14,6 +14,8 @@ from scipy import ndimage
 from relight.cli import main
 from relight.probe import detect, geometry as pg
 
+from conftest import load_script
+
 W, H, FOV_DEG = 160, 120, 40.0
 SHIFT_PX = 0.5
 SHIFT_TOL_PX = 0.1            # the issue: the estimate moves by at most 0.1 px more or less than the image
@@ -463,8 +465,8 @@ def test_every_radius_that_passes_the_screen_is_refined(monkeypatch):
     background = np.where((np.hypot(xs - plate[0], ys - plate[1]) < plate[2]) & dots, 0.05, 0.35)
     background = ndimage.gaussian_filter(background, 0.6)[..., None]
     image = _quantise(np.clip(i0 + background * (i1 - i0), 0.0, 1.0))
-    monkeypatch.setattr(detect, "hough_circles", lambda img: [plate])
-    chrome = detect.pick_sphere(detect.find_spheres(image, cam), "chrome")
+    monkeypatch.setattr(detect, "hough_circles", lambda img, *args: [plate])
+    chrome = detect.pick_sphere(detect.find_spheres(image, cam, clip_level=1.0), "chrome")   # an 8-bit image
     assert math.dist(chrome["circle"][:2], (cx, cy)) < 0.5
     assert abs(chrome["circle"][2] - r) < 0.5
 
@@ -694,20 +696,11 @@ def test_the_chrome_pick_reads_a_clipped_highlight_contrast_as_a_lower_bound():
     assert detect.pick_sphere([plain, clipped], "chrome") is clipped
 
 
-def _bench_probe():
-    import importlib.util
-    spec = importlib.util.spec_from_file_location(
-        "bench_probe", os.path.join(os.path.dirname(__file__), "..", "benchmarks", "bench_probe.py"))
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
-    return bench
-
-
 def test_blackman_harris_pixel_weights_match_the_window():
     """The cell-integrated weights of the refiltered set: symmetric, summing to 1, and each
     the window's integral over its pixel (checked by a fine midpoint sum), the outer pixels
     (beyond +-1.5 px) empty."""
-    w = _bench_probe().blackman_harris_weights(1.5)
+    w = load_script("benchmarks/bench_probe.py").blackman_harris_weights(1.5)
     x = np.linspace(-2.5, 2.5, 500_001)[:-1] + 5.0 / 1_000_000
     span = 3.0
     u = x / span + 0.5

@@ -147,9 +147,9 @@ def small_render(tmp_path_factory):
 
 def test_circle_detection_on_a_render(small_render):
     scene, path = small_render
-    image = probe_detect.read_probe_image(path)[0]
+    image, clip_level, _ = probe_detect.read_probe_image(path)
     cam = scene.camera
-    candidates = probe_detect.find_spheres(image, cam)
+    candidates = probe_detect.find_spheres(image, cam, clip_level)
     chrome = probe_detect.pick_sphere(candidates, "chrome")
     gray = probe_detect.pick_sphere(candidates, "diffuse", [chrome["circle"]])
     for found, which in ((chrome, "chrome"), (gray, "gray")):

@@ -487,8 +487,9 @@ def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = N
     Of candidates of one kind and similar radius within half a radius of each other the
     best supported stays (:func:`_merge_candidate`); so does no circle lying inside a better
     supported one (a highlight or a reflection). ``clip_level``: the image's (1.0 for an
-    integer file, None for a linear one that does not clip): a clipped highlight's contrast
-    is then read as a lower bound (:func:`hough_circles`, :func:`sphere_features`)."""
+    integer file: a clipped highlight's contrast is then read as a lower bound,
+    :func:`hough_circles`, :func:`sphere_features`; None for a linear HDR one that does not
+    clip, which is searched as a camera would have exposed it, :func:`exposed_like_a_camera`)."""
     if clip_level is None:   # linear HDR: look for spheres in the image a camera would have taken
         image, clip_level = exposed_like_a_camera(image), 1.0
     smoothed = _edge_image(image)
