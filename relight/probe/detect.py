@@ -24,7 +24,7 @@ __all__ = [
     "MAX_RADIUS_FRACTION", "MAX_CANDIDATES", "SPOT_PROPOSALS", "CLIPPED_SPOT_PROPOSALS", "CHROME_MIN_CONTRAST",
     "CHROME_MAX_BLOB_FRACTION", "CHROME_MIN_EXCESS", "CHROME_MIN_CLIPPED_CONTRAST", "CLIP_FRACTION", "DIFFUSE_MAX_RESIDUAL", "TRIM_FRACTION",
     "read_probe_image", "load_mask", "edge_points", "refine_sphere", "sphere_features", "hough_circles",
-    "find_spheres", "is_chrome", "is_diffuse", "pick_sphere",
+    "exposed_like_a_camera", "HDR_CLIP_SHARE", "find_spheres", "is_chrome", "is_diffuse", "pick_sphere",
     "outline_fit_px", "constrained_refinement", "GROW_RADII", "GROW_FINE_RADII", "GROW_MIN_SUPPORT_RATIO", "GROW_ROUNDS",
     "PICK_HIGHLIGHT_WEIGHT", "PICK_RADIUS_WEIGHT", "CHROME_INSIDE_PX", "outer_rim_fit",
 ]
