@@ -114,6 +114,7 @@ def make_set(folder: str, count: int, spp: int) -> None:
     from relight.scene.blender import blender_python
     from relight.fileio import atomic_write
     from relight.imageio import write_exr, write_png
+    from relight.probe.detect import camera_exposure
     from relight.verify import probe_scenes as ps
     os.makedirs(folder, exist_ok=True)
     backend.init()
@@ -126,7 +127,7 @@ def make_set(folder: str, count: int, spp: int) -> None:
         d = ps.sample_room_scene(i)
         image = ps.render_room_mitsuba(d, spp=spp)
         # exposure as a camera's: the brightest PNG_CLIP_SHARE of the pixels clip
-        d["png_exposure"] = float(1.0 / max(np.percentile(image.mean(-1), 100.0 * (1.0 - PNG_CLIP_SHARE)), 1e-6))
+        d["png_exposure"] = camera_exposure(image, PNG_CLIP_SHARE)
         write_exr(path[:-5] + ".mitsuba.exr", image)
         write_png(path[:-5] + ".mitsuba.png", image, exposure=d["png_exposure"])
         atomic_write(path, lambda tmp, d=d: open(tmp, "w").write(json.dumps(d, indent=1)))

@@ -39,7 +39,7 @@ __all__ = [
     "equirect_pixel_directions", "equirect_solid_angles", "envmap_rotation", "envmap_to_world",
     "world_to_envmap", "mitsuba_envmap_to_world", "rotation_about",
     "pan_from_rel", "tangent_move", "rotation_z", "frame_z_to", "perpendicular_pair", "sensor_frame",
-    "fold_over_zenith", "camera_to_pan_tilt",
+    "fold_over_zenith", "camera_to_pan_tilt", "upright_rectangle_to_world",
     "TARGET_FRAMES", "check_target_frame", "target_tilt_deg", "y_to_target", "target_to_y",
 ]
 
@@ -498,6 +498,27 @@ def camera_to_world(tilt_c_deg, r_c_m=20.0, pan_c_deg=0.0) -> np.ndarray:
     m = np.eye(4)
     m[:3, 0], m[:3, 1], m[:3, 2] = right, up, -forward
     m[:3, 3] = camera_position(tilt_c_deg, r_c_m, pan_c_deg)
+    return m
+
+
+def upright_rectangle_to_world(pan_deg: float, distance_m: float, half_width_m: float,
+                               height_m: float) -> np.ndarray:
+    """4x4 matrix placing Mitsuba's ``rectangle`` ([-1, 1]^2, normal +z) upright on the
+    floor: its centre line at horizontal distance ``distance_m`` from the origin toward pan
+    ``pan_deg``, its normal toward the origin, ``2 * half_width_m`` wide, ``height_m`` tall
+    (a room's wall, a studio backdrop).
+
+    >>> m = upright_rectangle_to_world(180.0, 5.0, 2.0, 3.0)
+    >>> (np.round(m @ [0, 0, 0, 1], 12) + 0.0).tolist(), (np.round(m[:3, 2], 12) + 0.0).tolist()
+    ([-5.0, 0.0, 1.5, 1.0], [1.0, 0.0, 0.0])
+    """
+    outward = rotation_z(pan_deg)[:, 0]
+    inward, up = -outward, np.array([0.0, 0.0, 1.0])
+    m = np.eye(4)
+    m[:3, 0] = np.cross(up, inward) * half_width_m   # local x; x * y = z holds: tangent x up = inward
+    m[:3, 1] = up * height_m / 2.0
+    m[:3, 2] = inward
+    m[:3, 3] = outward * distance_m + up * height_m / 2.0
     return m
 
 

@@ -159,3 +159,30 @@ def truth_entries(records: list[dict]) -> list[dict]:
     """Predictions entries that give each record's true light (pan_rel, tilt, rgb)."""
     return [{"id": r["id"], "pan_deg": r["pan_rel_deg"], "tilt_deg": r["light"]["tilt_deg"],
              "rgb": r["light"]["rgb"]} for r in records]
+
+
+# --- Cycles parity (scripts/setup_blender.sh) ---------------------------------------------
+def _blender_python():
+    from relight.scene.blender import blender_python
+    return blender_python()
+
+
+needs_blender = pytest.mark.skipif(
+    _blender_python() is None,
+    reason="no Blender environment (scripts/setup_blender.sh)")
+
+
+def assert_cycles_matches_mitsuba(spec, tmp_path):
+    """export-blender's Cycles render of ``spec`` against Mitsuba's: mean within 2%, pixels
+    within a relative RMSE of 6% (256 spp noise of both is about 1-2% per pixel; a lobe or
+    fill in the wrong units is a factor)."""
+    from relight.cli import main
+    from relight.imageio import read_exr
+    from relight.scene import blender
+    from relight.scene.build import SceneBuilder
+    scene, exr = tmp_path / "s.json", tmp_path / "s.exr"
+    spec.save(scene)
+    assert main(["export-blender", str(scene), "--out", str(tmp_path / "s.blend"), "--render", str(exr)]) == 0
+    cycles, mitsuba = read_exr(exr), SceneBuilder().render(spec)
+    assert cycles.mean() / mitsuba.mean() == pytest.approx(1.0, abs=0.02)
+    assert blender.relative_rmse(cycles, mitsuba) < 0.06

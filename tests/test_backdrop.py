@@ -15,7 +15,7 @@ from relight.errors import ConfigError
 from relight.generator.sampling import GeneratorConfig, sample_scene
 from relight.scene.spec import BackdropSpec, SceneFileError, SceneSpec
 
-from conftest import sphere_scene
+from conftest import assert_cycles_matches_mitsuba, needs_blender, sphere_scene
 
 SEED = 23
 
@@ -153,14 +153,8 @@ def test_backdrop_draws_come_last_and_never_shade_the_objects():
         GeneratorConfig(backdrop_albedo=(0.0, 0.1))
 
 
-needs_blender = pytest.mark.skipif(
-    __import__("relight.scene.blender", fromlist=["x"]).blender_python() is None,
-    reason="no Blender environment (scripts/setup_blender.sh)")
-
-
 @needs_blender
 def test_cycles_matches_mitsuba_with_a_backdrop(mi, tmp_path):
     """export-blender writes the backdrop as one more Lambert quad: Cycles and Mitsuba agree."""
-    from test_materials import _assert_cycles_matches_mitsuba
     base = sphere_scene(pan_rel_deg=20.0, tilt_deg=35.0, camera_tilt_deg=10.0, res=24, spp=256, seed=3)
-    _assert_cycles_matches_mitsuba(dataclasses.replace(base, backdrop=_backdrop(albedo=0.3)), tmp_path)
+    assert_cycles_matches_mitsuba(dataclasses.replace(base, backdrop=_backdrop(albedo=0.3)), tmp_path)

@@ -16,7 +16,7 @@ from relight.generator.sampling import (BUILTIN_MESH_DIR, GLOSS_ALPHA, GLOSSY_WE
 from relight.scene import shapes
 from relight.scene.spec import SceneFileError, SceneSpec
 
-from conftest import sphere_scene
+from conftest import assert_cycles_matches_mitsuba, needs_blender, sphere_scene
 
 SEED = 17
 
@@ -127,32 +127,11 @@ def test_generate_with_builtin_meshes_and_materials(tmp_path):
     assert all(o["mesh_path"].startswith(BUILTIN_MESH_DIR) for o in objs)
 
 
-needs_blender = pytest.mark.skipif(
-    __import__("relight.scene.blender", fromlist=["x"]).blender_python() is None,
-    reason="no Blender environment (scripts/setup_blender.sh)")
-
-
 @needs_blender
 def test_cycles_matches_mitsuba_on_a_glossy_object(mi, tmp_path):
     """export-blender's Mix Shader of Diffuse and GGX Glossy against Mitsuba's blendbsdf."""
-    _assert_cycles_matches_mitsuba(_with(sphere_scene(res=24, spp=256, seed=3, roughness=0.0), gloss=0.3,
+    assert_cycles_matches_mitsuba(_with(sphere_scene(res=24, spp=256, seed=3, roughness=0.0), gloss=0.3,
                                          gloss_alpha=0.2, gloss_rgb=(1.0, 0.78, 0.34)), tmp_path)
-
-
-def _assert_cycles_matches_mitsuba(spec, tmp_path):
-    """export-blender's Cycles render of ``spec`` against Mitsuba's: mean within 2%, pixels
-    within a relative RMSE of 6% (256 spp noise of both is about 1-2% per pixel; a lobe or
-    fill in the wrong units is a factor)."""
-    from relight.cli import main
-    from relight.imageio import read_exr
-    from relight.scene import blender
-    from relight.scene.build import SceneBuilder
-    scene, exr = tmp_path / "s.json", tmp_path / "s.exr"
-    spec.save(scene)
-    assert main(["export-blender", str(scene), "--out", str(tmp_path / "s.blend"), "--render", str(exr)]) == 0
-    cycles, mitsuba = read_exr(exr), SceneBuilder().render(spec)
-    assert cycles.mean() / mitsuba.mean() == pytest.approx(1.0, abs=0.02)
-    assert blender.relative_rmse(cycles, mitsuba) < 0.06
 
 
 # ----------------------------------------------------------------------------- sky fill
@@ -213,5 +192,5 @@ def test_sky_fill_in_scene_files_and_draws():
 def test_cycles_matches_mitsuba_with_a_sky_fill(mi, tmp_path):
     """The sky fill exports as the world's background colour (strength 1)."""
     base = _low_walls(sphere_scene(res=24, spp=256, seed=3))
-    _assert_cycles_matches_mitsuba(dataclasses.replace(base, light=dataclasses.replace(base.light, ambient=0.4)),
+    assert_cycles_matches_mitsuba(dataclasses.replace(base, light=dataclasses.replace(base.light, ambient=0.4)),
                                    tmp_path)

@@ -24,7 +24,7 @@ __all__ = [
     "MAX_RADIUS_FRACTION", "MAX_CANDIDATES", "SPOT_PROPOSALS", "CLIPPED_SPOT_PROPOSALS", "CHROME_MIN_CONTRAST",
     "CHROME_MAX_BLOB_FRACTION", "CHROME_MIN_EXCESS", "CHROME_MIN_CLIPPED_CONTRAST", "CLIP_FRACTION", "DIFFUSE_MAX_RESIDUAL", "TRIM_FRACTION",
     "read_probe_image", "load_mask", "edge_points", "refine_sphere", "sphere_features", "hough_circles",
-    "exposed_like_a_camera", "HDR_CLIP_SHARE", "find_spheres", "is_chrome", "is_diffuse", "pick_sphere",
+    "camera_exposure", "exposed_like_a_camera", "HDR_CLIP_SHARE", "find_spheres", "is_chrome", "is_diffuse", "pick_sphere",
     "outline_fit_px", "constrained_refinement", "GROW_RADII", "GROW_FINE_RADII", "GROW_MIN_SUPPORT_RATIO", "GROW_ROUNDS",
     "PICK_HIGHLIGHT_WEIGHT", "PICK_RADIUS_WEIGHT", "CHROME_INSIDE_PX", "outer_rim_fit",
 ]
@@ -473,12 +473,17 @@ def hough_circles(image: np.ndarray, clip_level: float | None = None, screen=Non
     return found[:keep] + taken + chosen
 
 
+def camera_exposure(image: np.ndarray, clip_share: float = HDR_CLIP_SHARE) -> float:
+    """The scale a camera's auto exposure would give a linear HDR image: its brightest
+    ``clip_share`` of pixels (by mean channel) reach 1."""
+    level = float(np.percentile(np.asarray(image, np.float64)[..., :3].mean(-1), 100.0 * (1.0 - clip_share)))
+    return 1.0 / max(level, 1e-12)
+
+
 def exposed_like_a_camera(image: np.ndarray) -> np.ndarray:
-    """A linear HDR image as a camera's auto exposure would record it: scaled so that its
-    brightest :data:`HDR_CLIP_SHARE` of pixels (by mean channel) clip, clipped at 1."""
-    img = np.asarray(image, np.float64)
-    level = float(np.percentile(img[..., :3].mean(-1), 100.0 * (1.0 - HDR_CLIP_SHARE)))
-    return np.clip(img / max(level, 1e-12), 0.0, 1.0)
+    """A linear HDR image as a camera's auto exposure would record it
+    (:func:`camera_exposure`), clipped at 1."""
+    return np.clip(np.asarray(image, np.float64) * camera_exposure(image), 0.0, 1.0)
 
 
 def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = None) -> list[dict]:

@@ -137,17 +137,9 @@ def template_key(spec: SceneSpec, meshes: list[shapes.Mesh],
 def wall_to_world(k: int, n_walls: int, inradius_m: float, height_m: float,
                   rotation_deg: float) -> np.ndarray:
     """4x4 matrix placing Mitsuba's ``rectangle`` ([-1,1]^2, normal +z) as wall ``k``,
-    its normal facing the room centre."""
-    outward = frames.rotation_z(rotation_deg + k * 360.0 / n_walls)[:, 0]
-    inward, up = -outward, np.array([0.0, 0.0, 1.0])
-    tangent = np.cross(up, inward)  # local x; x * y = z holds: tangent x up = inward
-    half_width = inradius_m * math.tan(math.pi / n_walls)
-    m = np.eye(4)
-    m[:3, 0] = tangent * half_width
-    m[:3, 1] = up * height_m / 2.0
-    m[:3, 2] = inward
-    m[:3, 3] = outward * inradius_m + up * height_m / 2.0
-    return m
+    its normal facing the room centre (:func:`relight.frames.upright_rectangle_to_world`)."""
+    return frames.upright_rectangle_to_world(rotation_deg + k * 360.0 / n_walls, inradius_m,
+                                             inradius_m * math.tan(math.pi / n_walls), height_m)
 
 
 def face_albedos(obj: ObjectSpec, mesh: shapes.Mesh) -> np.ndarray:

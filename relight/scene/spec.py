@@ -175,14 +175,7 @@ class BackdropSpec:
     def to_world(self) -> np.ndarray:
         """4x4 matrix placing Mitsuba's ``rectangle`` ([-1,1]^2, normal +z) as the
         backdrop: normal toward the scene centre, bottom edge on the floor."""
-        outward = frames.direction(self.pan_deg, 0.0)
-        inward, up = -outward, np.array([0.0, 0.0, 1.0])
-        m = np.eye(4)
-        m[:3, 0] = np.cross(up, inward) * self.half_width_m
-        m[:3, 1] = up * self.height_m / 2.0
-        m[:3, 2] = inward
-        m[:3, 3] = outward * self.distance_m + up * self.height_m / 2.0
-        return m
+        return frames.upright_rectangle_to_world(self.pan_deg, self.distance_m, self.half_width_m, self.height_m)
 
     def blocks(self, start_m, end_m) -> bool:
         """Whether the segment from ``start_m`` to ``end_m`` (world points, metres)
