@@ -572,3 +572,43 @@ def test_shrinkage_reads_the_slope_and_the_shift_of_answers_pulled_to_an_average
                  "group": list(groups)})
     assert s["slope_x"] == pytest.approx(0.4)
     assert all(np.isnan(v) for v in shrinkage(np.zeros((0, 3)), np.zeros((0, 3))).values())
+
+
+# --- benchmarks/proxy_mode_head.py: the mode-seeking read-out study (docs/photo.md, ninth round)
+
+def test_mode_head_bins_and_camera_vectors():
+    """The bins cover the sphere evenly, and the study's camera-frame truth is the frames
+    module's: a camera-frame target decodes to ``world_to_camera`` of the light."""
+    from conftest import load_script
+    bench = load_script("benchmarks/proxy_mode_head.py")
+    bins = bench.fibonacci_sphere(1024)
+    np.testing.assert_allclose(np.linalg.norm(bins, axis=1), 1.0, atol=1e-12)
+    assert np.linalg.norm(bins.mean(axis=0)) < 1e-2
+    nearest = np.degrees(np.arccos(np.clip(np.sort(bins @ bins.T, axis=1)[:, -2], -1.0, 1.0)))
+    spacing = np.degrees(np.sqrt(4.0 * np.pi / len(bins)))   # 6.3 degrees
+    assert 0.6 * spacing < nearest.min() and nearest.max() < 1.4 * spacing
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        pan, tilt, tilt_c = rng.uniform(0, 360), rng.uniform(-80, 85), rng.uniform(0, 70)
+        y = frames.encode_y(pan, tilt, [0.6, 0.6, 0.5], tilt_c_deg=tilt_c)
+        got = bench.camera_vectors(frames.y_to_target(y, tilt_c, "camera")[None])[0]
+        want = frames.world_to_camera(frames.direction(pan, tilt), tilt_c)
+        np.testing.assert_allclose(got, want, atol=1e-9)
+
+
+def test_mode_head_reads_the_mode_not_the_mean():
+    """Two lobes of probability 0.6 and 0.4, 90 degrees apart: the mode read-out lands on
+    the larger lobe (within a bin), the mean read-out between the two (its closed form here:
+    the normalised 0.6 d1 + 0.4 d2, 33.7 degrees from d1)."""
+    from conftest import load_script
+    bench = load_script("benchmarks/proxy_mode_head.py")
+    bins = bench.fibonacci_sphere(1024)
+    d1, d2 = np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])
+    lobe = lambda d: np.exp(400.0 * (bins @ d - 1.0)) / np.exp(400.0 * (bins @ d - 1.0)).sum()
+    p = 0.6 * lobe(d1) + 0.4 * lobe(d2)
+    logits = torch.from_numpy(np.log(p)[None].astype(np.float32))
+    out = bench.read_bins(lambda e: logits, np.zeros((1, 4), np.float32), bins, mode_radius_deg=15.0)
+    angle = lambda a, b: float(np.degrees(np.arccos(np.clip(a @ b, -1.0, 1.0))))
+    assert angle(out["bins-mode"][0], d1) < 3.0
+    assert abs(angle(out["bins-mean"][0], d1) - np.degrees(np.arctan2(0.4, 0.6))) < 3.0
+    assert abs(out["peak_prob"][0] - 0.6) < 0.02
