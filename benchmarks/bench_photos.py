@@ -103,6 +103,19 @@ def ensure_devset(root: str, n: int) -> tuple[str | None, str | None, str | None
     return mitsuba, cycles, agx
 
 
+def _camera_response(spheres: str) -> str:
+    """One line: the psm camera's response curve, read off the gray ball of known lights
+    (:func:`relight.net.photos.response_gamma`)."""
+    from relight.imageio import load_image
+    from relight.net import photos
+    files, truth = photos.read_photo_set(spheres, ("gray",))
+    mask = load_image(os.path.join(spheres, "gray.mask.png"))[0][..., 0] > 0.5
+    gammas = [photos.response_gamma(load_image(f)[0][..., :3], mask, t)["gamma"] for f, t in zip(files, truth)]
+    return (f"psm camera response (gray ball, {len(gammas)} lights): codes ~ (n.l)^(1/gamma), gamma median "
+            f"{np.median(gammas):.2f} (range {min(gammas):.2f}-{max(gammas):.2f}; 1 = proportional to the light, "
+            "sRGB about 2.2)")
+
+
 def main(argv=None) -> int:
     from relight.commands import argtypes as at
     ap = at.OneLineParser(description=__doc__.split("\n\n")[0])
@@ -146,6 +159,7 @@ def main(argv=None) -> int:
             if args.backdrop_off:
                 sets.append(("psm_spheres gray ball, backdrop blacked out (masks)", "photo-off", spheres, ("gray",)))
             sets.append(("psm_spheres chrome ball", "photo", spheres, ("chrome",)))
+            print(_camera_response(spheres))
         else:
             print(f"psm_spheres: skipped ({spheres} not present)")
         for folder in args.data:

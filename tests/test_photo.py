@@ -612,3 +612,47 @@ def test_mode_head_reads_the_mode_not_the_mean():
     assert angle(out["bins-mode"][0], d1) < 3.0
     assert abs(angle(out["bins-mean"][0], d1) - np.degrees(np.arctan2(0.4, 0.6))) < 3.0
     assert abs(out["peak_prob"][0] - 0.6) < 0.02
+
+
+def _lambert_ball(to_light, gamma, size=96, a=0.8, b=0.03):
+    """A diffuse ball filling most of a square image, seen orthographically, its codes
+    ``a * max(0, n . l) ** (1 / gamma) + b`` (the closed form response_gamma fits)."""
+    yy, xx = np.mgrid[0:size, 0:size]
+    r = 0.4 * size
+    nx, ny = (xx + 0.5 - size / 2) / r, -(yy + 0.5 - size / 2) / r
+    inside = nx ** 2 + ny ** 2 < 1.0
+    nz = np.sqrt(np.clip(1.0 - nx ** 2 - ny ** 2, 0.0, 1.0))
+    shade = np.clip(np.stack([nx, ny, nz], -1) @ np.asarray(to_light, float), 0.0, None)
+    return np.where(inside, a * shade ** (1.0 / gamma) + b, 0.0), inside
+
+
+@pytest.mark.parametrize("gamma", [1.0, 2.2])
+def test_response_gamma_reads_the_curve_off_a_diffuse_ball(gamma):
+    """A linear camera (gamma 1) and a display encoding (2.2) are told apart, from the
+    closed-form shading of a Lambertian ball under a known light, 8-bit quantised."""
+    from relight.net.photos import response_gamma
+    light = np.array([0.3, 0.4, np.sqrt(1 - 0.25)])
+    codes, mask = _lambert_ball(light, gamma)
+    fit = response_gamma(np.round(codes * 255) / 255, mask, light)
+    assert abs(fit["gamma"] - gamma) < 0.05 * gamma and abs(fit["a"] - 0.8) < 0.05 and fit["rms"] < 0.01
+
+
+def test_linear_tone_curve_only_in_photo_linear():
+    """``photo`` (the shipped recipe) never draws the linear curve; ``photo-linear`` does, and
+    with every other effect off its codes are proportional to the light."""
+    from relight.net.augment import AUGMENTS, DISPLAY_CURVES
+    assert AUGMENTS["photo"]().tone_curves == DISPLAY_CURVES and "linear" not in DISPLAY_CURVES
+    x = _linear(4)
+    only_linear = PipelineAugment(exposure_ev=(0.0, 0.0), photon_a=(1e-18, 1e-18), read_sigma=(0.0, 0.0),
+                                  vignette=(0.0, 0.0), blur_px=(0.0, 0.0), tone_curves=("linear",), jpeg_p=0.0)
+    out = only_linear.apply(x, np.random.default_rng(0)).astype(int)
+    assert np.abs(out - np.round(255 * x)).max() <= 1
+    off = dict(photon_a=(1e-18, 1e-18), read_sigma=(0.0, 0.0), vignette=(0.0, 0.0), blur_px=(0.0, 0.0),
+               jpeg_p=0.0, exposure_ev=(0.0, 0.0))
+    grey = np.full((4, 4, 3), 0.2)
+    linear_code = round(255 * 0.2)
+    draws = {name: [int(PipelineAugment(tone_curves=AUGMENTS[name]().tone_curves, **off)
+                        .apply(grey, np.random.default_rng(s))[0, 0, 0]) for s in range(60)]
+             for name in ("photo", "photo-linear")}
+    assert linear_code not in draws["photo"]
+    assert 5 <= draws["photo-linear"].count(linear_code) <= 30   # about a quarter of 60

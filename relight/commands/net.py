@@ -63,10 +63,12 @@ def add_commands(sub) -> None:
                         "photographs need no assumed camera tilt (default 0: no head; docs/photo.md)")
     t.add_argument("--source", choices=["image", "exr"], default="image",
                    help="train on the dataset's 8-bit PNGs (default) or on its linear EXRs (see --augment)")
-    t.add_argument("--augment", choices=["none", "photo"], default="none",
+    from relight.net.augment import AUGMENTS
+    t.add_argument("--augment", choices=list(AUGMENTS), default="none",
                    help="camera-pipeline augmentation of --source exr at training time: photo = exposure "
-                        "+-2 EV, sensor noise, vignetting, blur, sRGB/gamma/filmic tone curves, JPEG 40-100 "
-                        "(default none: as the PNGs are written; relight/net/augment.py)")
+                        "+-2 EV, sensor noise, vignetting, blur, sRGB/gamma/filmic tone curves, JPEG 40-100; "
+                        "photo-linear = the same with a linear (no) tone curve drawn too, as machine-vision "
+                        "cameras store images (default none: as the PNGs are written; relight/net/augment.py)")
     t.add_argument("--target-frame", choices=["world", "camera"], default="world",
                    help="what the network learns: world = the paper's 7-vector, the light relative to the "
                         "camera in the world's angles (default); camera = the light in the camera frame "

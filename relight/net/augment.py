@@ -17,9 +17,14 @@ Each effect, drawn independently per image from ``numpy.random.Generator``:
 * blur: a Gaussian of ``sigma`` pixels (at network size) uniform in ``blur_px``;
 * tone curve, one of: the sRGB transfer (:func:`relight.colour.srgb_encode`); a pure gamma
   ``x ** (1 / g)``, ``g`` in ``gamma``; a filmic curve (Hable's "Uncharted 2" operator,
-  white point 11.2, exposure bias 2) followed by the sRGB transfer; then 8-bit quantisation;
+  white point 11.2, exposure bias 2) followed by the sRGB transfer; with ``"linear"`` among
+  ``tone_curves``, none at all (the code proportional to the light, as machine-vision and
+  scientific cameras and photometric-stereo sets store it); then 8-bit quantisation;
 * JPEG at a quality uniform in ``jpeg_quality`` (OpenCV's encoder), with probability
   ``jpeg_p``.
+
+``AUGMENTS`` names the pipelines training can use: ``"photo"`` draws the first three curves
+(the shipped photo model's recipe), ``"photo-linear"`` all four.
 
 ``PipelineAugment.none()`` is the identity pipeline: the sRGB transfer at exposure 1 and
 8-bit quantisation, exactly how the dataset PNGs are written (:func:`relight.imageio.to_srgb8`).
@@ -34,6 +39,7 @@ from relight import colour
 
 __all__ = [
     "TONE_CURVES",
+    "DISPLAY_CURVES",
     "HABLE_WHITE",
     "HABLE_EXPOSURE_BIAS",
     "AUGMENTS",
@@ -41,7 +47,8 @@ __all__ = [
     "PipelineAugment",
 ]
 
-TONE_CURVES = ("srgb", "gamma", "filmic")
+TONE_CURVES = ("srgb", "gamma", "filmic", "linear")
+DISPLAY_CURVES = TONE_CURVES[:3]   # the "photo" pipeline's: a display encoding after the camera
 HABLE_WHITE = 11.2   # Hable's linear white point
 HABLE_EXPOSURE_BIAS = 2.0   # the gain before the curve in Hable's sample code
 
@@ -66,7 +73,7 @@ class PipelineAugment:
     read_sigma: tuple[float, float] = (0.0, 0.01)
     vignette: tuple[float, float] = (0.0, 0.4)
     blur_px: tuple[float, float] = (0.0, 1.0)
-    tone_curves: tuple[str, ...] = TONE_CURVES
+    tone_curves: tuple[str, ...] = DISPLAY_CURVES
     gamma: tuple[float, float] = (1.8, 2.6)
     jpeg_quality: tuple[int, int] = (40, 100)
     jpeg_p: float = 0.5
@@ -110,6 +117,8 @@ class PipelineAugment:
             y = colour.srgb_encode(np.clip(x, 0.0, 1.0))
         elif curve == "gamma":
             y = np.clip(x, 0.0, 1.0) ** (1.0 / rng.uniform(*self.gamma))
+        elif curve == "linear":
+            y = np.clip(x, 0.0, 1.0)
         else:
             y = colour.srgb_encode(np.clip(hable(x * HABLE_EXPOSURE_BIAS), 0.0, 1.0))
         out = np.round(np.clip(y, 0.0, 1.0) * 255.0).astype(np.uint8)
@@ -122,4 +131,9 @@ class PipelineAugment:
         return out
 
 
-AUGMENTS = {"none": PipelineAugment.none, "photo": PipelineAugment}   # TrainConfig.augment -> pipeline
+def _photo_linear() -> PipelineAugment:
+    return PipelineAugment(tone_curves=TONE_CURVES)
+
+
+AUGMENTS = {"none": PipelineAugment.none, "photo": PipelineAugment,   # TrainConfig.augment -> pipeline
+            "photo-linear": _photo_linear}

@@ -25,7 +25,7 @@ import numpy as np
 from relight import frames, metrics
 
 __all__ = ["SHARED_DATA_ENV", "shared_data_dir", "read_photo_set", "score_photo_set", "score_dataset", "summary",
-           "follows_light", "shading_split", "shrinkage"]
+           "follows_light", "shading_split", "shrinkage", "response_gamma"]
 
 SHARED_DATA_ENV = "RELIGHT_SHARED_DATA"
 
@@ -190,6 +190,35 @@ def shading_split(pred, truth) -> dict[str, np.ndarray]:
     def slant(v):
         return np.degrees(np.arccos(np.clip(v[:, 2] / np.linalg.norm(v, axis=1), -1.0, 1.0)))
     return {"image_angle_deg": image_angle, "slant_error_deg": slant(pred) - slant(truth)}
+
+
+def response_gamma(image: np.ndarray, mask: np.ndarray, to_light_camera, min_cos: float = 0.05) -> dict:
+    """The camera's response curve read off a diffuse ball of known light: the fit of the
+    stored codes ``v`` (``image``, ``(H, W)`` or ``(H, W, C)`` in [0, 1], channels averaged)
+    inside ``mask`` (the ball, seen near-orthographically: its circle from the mask's area and
+    centroid) to ``a * max(0, n . l) ** (1 / gamma) + b``, with ``l`` the light (camera frame,
+    x right, y up, z toward the camera) and ``n`` the ball's normals. A camera that stores
+    codes proportional to the light gives ``gamma`` 1, an sRGB or display gamma one about 2.2.
+    Pixels near the rim (``n . z < 0.2``), in the shadow (``n . l < min_cos``) and clipped
+    (``v >= 0.98``) are left out. Returns ``gamma``, ``a``, ``b`` and ``rms`` (of the fit)."""
+    from scipy.optimize import least_squares
+    v = np.asarray(image, np.float64)
+    v = v.mean(axis=2) if v.ndim == 3 else v
+    mask = np.asarray(mask, bool)
+    ys, xs = np.nonzero(mask)
+    cx, cy, r = xs.mean() + 0.5, ys.mean() + 0.5, np.sqrt(mask.sum() / np.pi)
+    yy, xx = np.mgrid[0:mask.shape[0], 0:mask.shape[1]]
+    nx, ny = (xx + 0.5 - cx) / r, -(yy + 0.5 - cy) / r
+    nz = np.sqrt(np.clip(1.0 - nx ** 2 - ny ** 2, 0.0, 1.0))
+    shade = np.stack([nx, ny, nz], -1) @ np.asarray(to_light_camera, np.float64)
+    use = mask & (nz > 0.2) & (shade > min_cos) & (v < 0.98)
+    s, code = shade[use], v[use]
+
+    def residual(p):
+        return p[0] * s ** (1.0 / p[1]) + p[2] - code
+    fit = least_squares(residual, [0.8, 1.5, 0.0], bounds=([0.0, 0.3, -0.5], [10.0, 5.0, 0.5]))
+    a, gamma, b = (float(x) for x in fit.x)
+    return {"gamma": gamma, "a": a, "b": b, "rms": float(np.sqrt(np.mean(fit.fun ** 2)))}
 
 
 def score_dataset(model, data_dir: str, split: str = "all", limit: int | None = None) -> dict:
