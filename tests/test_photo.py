@@ -656,3 +656,15 @@ def test_linear_tone_curve_only_in_photo_linear():
              for name in ("photo", "photo-linear")}
     assert linear_code not in draws["photo"]
     assert 5 <= draws["photo-linear"].count(linear_code) <= 30   # about a quarter of 60
+
+
+def test_response_gamma_refuses_what_it_cannot_fit():
+    from relight.net.photos import response_gamma
+    light = np.array([0.0, 0.0, 1.0])
+    codes, mask = _lambert_ball(light, 1.0)
+    with pytest.raises(ValueError, match="does not match"):
+        response_gamma(codes, mask[:-1], light)
+    with pytest.raises(ValueError, match="needs"):
+        response_gamma(codes, np.zeros_like(mask), light)
+    with pytest.raises(ValueError, match="lit, unclipped"):   # lit from behind: nothing to fit
+        response_gamma(codes, mask, -light)

@@ -25,7 +25,7 @@ import numpy as np
 from relight import frames, metrics
 
 __all__ = ["SHARED_DATA_ENV", "shared_data_dir", "read_photo_set", "score_photo_set", "score_dataset", "summary",
-           "follows_light", "shading_split", "shrinkage", "response_gamma"]
+           "follows_light", "shading_split", "shrinkage", "response_gamma", "MIN_RESPONSE_PIXELS"]
 
 SHARED_DATA_ENV = "RELIGHT_SHARED_DATA"
 
@@ -192,6 +192,9 @@ def shading_split(pred, truth) -> dict[str, np.ndarray]:
     return {"image_angle_deg": image_angle, "slant_error_deg": slant(pred) - slant(truth)}
 
 
+MIN_RESPONSE_PIXELS = 50   # lit pixels a response fit needs (a ball of radius 5 px holds about 80)
+
+
 def response_gamma(image: np.ndarray, mask: np.ndarray, to_light_camera, min_cos: float = 0.05) -> dict:
     """The camera's response curve read off a diffuse ball of known light: the fit of the
     stored codes ``v`` (``image``, ``(H, W)`` or ``(H, W, C)`` in [0, 1], channels averaged)
@@ -200,12 +203,18 @@ def response_gamma(image: np.ndarray, mask: np.ndarray, to_light_camera, min_cos
     x right, y up, z toward the camera) and ``n`` the ball's normals. A camera that stores
     codes proportional to the light gives ``gamma`` 1, an sRGB or display gamma one about 2.2.
     Pixels near the rim (``n . z < 0.2``), in the shadow (``n . l < min_cos``) and clipped
-    (``v >= 0.98``) are left out. Returns ``gamma``, ``a``, ``b`` and ``rms`` (of the fit)."""
+    (``v >= 0.98``) are left out. Returns ``gamma``, ``a``, ``b`` and ``rms`` (of the fit).
+    Raises ValueError when the mask does not match the image or leaves fewer than
+    :data:`MIN_RESPONSE_PIXELS` lit pixels to fit."""
     from scipy.optimize import least_squares
     v = np.asarray(image, np.float64)
     v = v.mean(axis=2) if v.ndim == 3 else v
     mask = np.asarray(mask, bool)
+    if mask.shape != v.shape:
+        raise ValueError(f"mask {mask.shape} does not match the image {v.shape}")
     ys, xs = np.nonzero(mask)
+    if len(xs) < MIN_RESPONSE_PIXELS:
+        raise ValueError(f"the mask holds {len(xs)} pixels; a response fit needs {MIN_RESPONSE_PIXELS}")
     cx, cy, r = xs.mean() + 0.5, ys.mean() + 0.5, np.sqrt(mask.sum() / np.pi)
     yy, xx = np.mgrid[0:mask.shape[0], 0:mask.shape[1]]
     nx, ny = (xx + 0.5 - cx) / r, -(yy + 0.5 - cy) / r
@@ -213,6 +222,8 @@ def response_gamma(image: np.ndarray, mask: np.ndarray, to_light_camera, min_cos
     shade = np.stack([nx, ny, nz], -1) @ np.asarray(to_light_camera, np.float64)
     use = mask & (nz > 0.2) & (shade > min_cos) & (v < 0.98)
     s, code = shade[use], v[use]
+    if len(s) < MIN_RESPONSE_PIXELS:
+        raise ValueError(f"{len(s)} lit, unclipped pixels on the ball; a response fit needs {MIN_RESPONSE_PIXELS}")
 
     def residual(p):
         return p[0] * s ** (1.0 / p[1]) + p[2] - code
