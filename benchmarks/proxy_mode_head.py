@@ -150,13 +150,8 @@ class Heads:
         x = torch.from_numpy((e - self.mu) / self.sd)
         with torch.no_grad():
             r = F.normalize(self.regress(x), dim=1)
-            p = torch.softmax(self.classify(x), dim=1)
-        mean = F.normalize(p @ self.bins, dim=1)
-        peak = self.bins[p.argmax(1)]
-        near = (peak @ self.bins.T) >= np.cos(np.radians(mode_radius_deg))
-        mode = F.normalize((p * near) @ self.bins, dim=1)
-        return {"regress": r.double().numpy(), "bins-mean": mean.double().numpy(),
-                "bins-mode": mode.double().numpy(), "peak_prob": (p * near).sum(1).double().numpy()}
+        return {"regress": r.double().numpy()} | read_bins(self.classify, x.numpy(), self.bins.double().numpy(),
+                                                             mode_radius_deg)
 
 
 def finetune(init: str, data_dir: str, out: str, bins: np.ndarray, sigma_deg: float, epochs: int, lr: float,
@@ -267,6 +262,29 @@ def score(label: str, answers: dict, truth: np.ndarray, groups=None) -> list[str
     return rows
 
 
+def report(model, read, e_test: np.ndarray, t_test: np.ndarray, h_test: np.ndarray, shared: str | None) -> None:
+    """Print the table: each read-out (``read(embeddings)``, plus the model's own ``heads``) on
+    the render test range and on the psm photographs (skipped with one line where absent)."""
+    from relight.net.photos import read_photo_set, shared_data_dir
+    print("| set | read-out | n | median | mean | slope x / y | bias x / y |")
+    print("|---|---|---|---|---|---|---|")
+    for row in score("renders (unseen)", read(e_test) | {"heads": h_test}, t_test):
+        print(row)
+    shared = shared_data_dir(shared)
+    for label, sub, names in (("psm_objects", "psm_objects", None), ("gray ball", "psm_spheres", ("gray",)),
+                              ("chrome ball", "psm_spheres", ("chrome",))):
+        folder = os.path.join(shared, sub)
+        if not os.path.isdir(folder):
+            print(f"{label}: skipped ({folder} not present)")
+            continue
+        files, truth = read_photo_set(folder, names)
+        e, h = embed_photos(model, files)
+        answers = read(e) | {"heads": h}
+        for row in score(label, answers, truth, [os.path.basename(f).split(".")[0] for f in files]):
+            print(row)
+        print(f"| {label} | peak mass (bins-mode) | {len(files)} | {np.median(answers['peak_prob']):.2f} | | | |")
+
+
 def main(argv=None) -> int:
     from relight.commands import argtypes as at
     count, deg = at.int_in(1, 10_000_000, "a count"), at.float_in(0.0, 180.0, "an angle in degrees", open_lo=True)
@@ -315,7 +333,6 @@ def main(argv=None) -> int:
     import torch
 
     from relight.net.io import load_model_file
-    from relight.net.photos import read_photo_set, shared_data_dir
     torch.set_num_threads(a.threads)
     model = load_model_file(a.model).eval()
     os.makedirs(a.cache, exist_ok=True)
@@ -329,54 +346,18 @@ def main(argv=None) -> int:
     heads = Heads(e_tr.shape[1], fibonacci_sphere(a.bins), a.hidden, a.sigma, a.seed)
     heads.fit(e_tr, t_tr, a.epochs, a.lr, a.wd)
 
-    print("| set | read-out | n | median | mean | slope x / y | bias x / y |")
-    print("|---|---|---|---|---|---|---|")
-    answers = heads.read(e_te, a.mode_radius) | {"heads": h_te}
-    for row in score("renders (unseen)", answers, t_te):
-        print(row)
-    shared = shared_data_dir(a.shared)
-    for label, sub, names in (("psm_objects", "psm_objects", None), ("gray ball", "psm_spheres", ("gray",)),
-                              ("chrome ball", "psm_spheres", ("chrome",))):
-        folder = os.path.join(shared, sub)
-        if not os.path.isdir(folder):
-            print(f"{label}: skipped ({folder} not present)")
-            continue
-        files, truth = read_photo_set(folder, names)
-        e, h = embed_photos(model, files)
-        answers = heads.read(e, a.mode_radius) | {"heads": h}
-        groups = [os.path.basename(f).split(".")[0] for f in files]
-        for row in score(label, answers, truth, groups):
-            print(row)
-        print(f"| {label} | peak mass (bins-mode) | {len(files)} | {np.median(answers['peak_prob']):.2f} | | | |")
+    report(model, lambda e: heads.read(e, a.mode_radius), e_te, t_te, h_te, a.shared)
     return 0
 
 
 def main_finetune(a) -> int:
     import torch
-
-    from relight.net.photos import read_photo_set, shared_data_dir
     torch.set_num_threads(a.threads)
     bins = fibonacci_sphere(a.bins)
     model, classify = finetune(a.init, a.finetune, a.out, bins, a.sigma, a.ft_epochs, a.ft_lr, a.lr, a.ce_weight,
                                a.seed)
     e_te, t_te, h_te = embed_dataset(model, a.data, a.test_from, a.test, False, 0, os.path.join(a.out, "test.npz"))
-    print("| set | read-out | n | median | mean | slope x / y | bias x / y |")
-    print("|---|---|---|---|---|---|---|")
-    for row in score("renders (unseen)", read_bins(classify, e_te, bins, a.mode_radius) | {"heads": h_te}, t_te):
-        print(row)
-    shared = shared_data_dir(a.shared)
-    for label, sub, names in (("psm_objects", "psm_objects", None), ("gray ball", "psm_spheres", ("gray",)),
-                              ("chrome ball", "psm_spheres", ("chrome",))):
-        folder = os.path.join(shared, sub)
-        if not os.path.isdir(folder):
-            print(f"{label}: skipped ({folder} not present)")
-            continue
-        files, truth = read_photo_set(folder, names)
-        e, h = embed_photos(model, files)
-        answers = read_bins(classify, e, bins, a.mode_radius) | {"heads": h}
-        for row in score(label, answers, truth, [os.path.basename(f).split(".")[0] for f in files]):
-            print(row)
-        print(f"| {label} | peak mass (bins-mode) | {len(files)} | {np.median(answers['peak_prob']):.2f} | | | |")
+    report(model, lambda e: read_bins(classify, e, bins, a.mode_radius), e_te, t_te, h_te, a.shared)
     return 0
 
 
