@@ -106,11 +106,17 @@ def ensure_devset(root: str, n: int) -> tuple[str | None, str | None, str | None
 def _camera_response(spheres: str) -> str:
     """One line: the psm camera's response curve, read off the gray ball of known lights
     (:func:`relight.net.photos.response_gamma`)."""
+    from relight.errors import RelightError
     from relight.imageio import load_image
     from relight.net import photos
-    files, truth = photos.read_photo_set(spheres, ("gray",))
-    mask = load_image(os.path.join(spheres, "gray.mask.png"))[0][..., 0] > 0.5
-    gammas = [photos.response_gamma(load_image(f)[0][..., :3], mask, t)["gamma"] for f, t in zip(files, truth)]
+    try:
+        files, truth = photos.read_photo_set(spheres, ("gray",))
+        mask = load_image(os.path.join(spheres, "gray.mask.png"))[0][..., 0] > 0.5
+        gammas = [photos.response_gamma(load_image(f)[0][..., :3], mask, t)["gamma"] for f, t in zip(files, truth)]
+    except (RelightError, OSError, ValueError) as exc:
+        return f"psm camera response: not measured ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})"
+    if not gammas:
+        return "psm camera response: not measured (no gray ball photographs)"
     return (f"psm camera response (gray ball, {len(gammas)} lights): codes ~ (n.l)^(1/gamma), gamma median "
             f"{np.median(gammas):.2f} (range {min(gammas):.2f}-{max(gammas):.2f}; 1 = proportional to the light, "
             "sRGB about 2.2)")
