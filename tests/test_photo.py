@@ -668,3 +668,35 @@ def test_response_gamma_refuses_what_it_cannot_fit():
         response_gamma(codes, np.zeros_like(mask), light)
     with pytest.raises(ValueError, match="lit, unclipped"):   # lit from behind: nothing to fit
         response_gamma(codes, mask, -light)
+
+
+def test_glare_lifts_dark_surroundings_in_the_scene_colour():
+    """Veiling glare (``photo-glare``), every other effect off: what it adds is a smooth field
+    in [0, 1] times the image's mean colour times g (<= the range's top), so a dark
+    surround is lifted by up to that much and a lit patch barely changes; ``photo`` never adds it."""
+    from relight.net.augment import AUGMENTS, glare_field
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        f = glare_field((32, 48), rng)
+        assert f.shape == (32, 48) and f.min() >= 0.0 and f.max() <= 1.0
+        assert np.abs(np.diff(f, axis=1)).max() < 0.2 and np.abs(np.diff(f, axis=0)).max() < 0.2   # smooth
+    off = dict(exposure_ev=(0.0, 0.0), photon_a=(1e-18, 1e-18), read_sigma=(0.0, 0.0), vignette=(0.0, 0.0),
+               blur_px=(0.0, 0.0), tone_curves=("linear",), jpeg_p=0.0)
+    scene = np.zeros((32, 32, 3))
+    scene[8:24, 8:24] = [0.6, 0.4, 0.2]   # a lit warm patch on black
+    top = AUGMENTS["photo-glare"]().glare[1]
+    lifted = 0
+    for seed in range(20):
+        out = PipelineAugment(glare_p=1.0, **off).apply(scene, np.random.default_rng(seed)) / 255.0
+        added = out[0:6, 0:6]   # the black surround: glare alone
+        assert np.all(added <= top * scene.mean(axis=(0, 1)) + 1 / 255)
+        patch = out[10:22, 10:22]
+        assert np.abs(patch - scene[10:22, 10:22]).max() <= top * scene.mean(axis=(0, 1)).max() + 1 / 255
+        lifted += added.max() > 2 / 255
+        if added.max() > 10 / 255:   # the scene's colour: red over green over blue, as the mean is
+            mean = added.reshape(-1, 3).mean(axis=0)
+            assert mean[0] > mean[1] > mean[2]
+    assert lifted >= 5
+    plain = PipelineAugment(**off)
+    assert AUGMENTS["photo"]().glare_p == 0.0
+    assert np.array_equal(plain.apply(scene, np.random.default_rng(1)), np.round(scene * 255).astype(np.uint8))

@@ -13,6 +13,11 @@ Each effect, drawn independently per image from ``numpy.random.Generator``:
 * exposure: a gain of ``2 ** ev``, ``ev`` uniform in :attr:`PipelineAugment.exposure_ev`;
 * sensor noise, Poisson-Gaussian (Foi et al. 2008): variance ``a * x + b`` per pixel, with
   ``a`` log-uniform in ``photon_a`` and ``b = read_sigma ** 2``;
+* veiling glare (with probability ``glare_p``, 0 in ``"photo"``): light scattered in the
+  lens and stray light in the scene, a smooth field added to the linear image, of the
+  image's mean colour times ``g``, ``g`` log-uniform in ``glare``: a blend of a ramp of
+  random direction and a broad Gaussian at a random place, at most 1; it lifts dark
+  surroundings in a pattern unrelated to the light, and barely changes lit surfaces;
 * vignetting: ``1 - v * (r / r_corner) ** 2``, ``v`` uniform in ``vignette``;
 * blur: a Gaussian of ``sigma`` pixels (at network size) uniform in ``blur_px``;
 * tone curve, one of: the sRGB transfer (:func:`relight.colour.srgb_encode`); a pure gamma
@@ -24,7 +29,8 @@ Each effect, drawn independently per image from ``numpy.random.Generator``:
   ``jpeg_p``.
 
 ``AUGMENTS`` names the pipelines training can use: ``"photo"`` draws the first three curves
-(the shipped photo model's recipe), ``"photo-linear"`` all four.
+and no glare (the shipped photo model's recipe), ``"photo-linear"`` all four curves,
+``"photo-glare"`` the photo pipeline with glare on half the images.
 
 ``PipelineAugment.none()`` is the identity pipeline: the sRGB transfer at exposure 1 and
 8-bit quantisation, exactly how the dataset PNGs are written (:func:`relight.imageio.to_srgb8`).
@@ -44,6 +50,7 @@ __all__ = [
     "HABLE_EXPOSURE_BIAS",
     "AUGMENTS",
     "hable",
+    "glare_field",
     "PipelineAugment",
 ]
 
@@ -65,6 +72,20 @@ def hable(x: np.ndarray) -> np.ndarray:
     return curve(np.maximum(x, 0.0)) / curve(HABLE_WHITE)
 
 
+def glare_field(shape: tuple[int, int], rng: np.random.Generator) -> np.ndarray:
+    """A smooth random field ``(H, W)`` in [0, 1]: a ramp of random direction blended with a
+    broad Gaussian (sigma 0.3-1 of the half-size) at a random place, by a random weight."""
+    h, w = shape
+    yy, xx = np.mgrid[0:h, 0:w]
+    u, v = (xx + 0.5) / w * 2.0 - 1.0, (yy + 0.5) / h * 2.0 - 1.0
+    theta = rng.uniform(0.0, 2.0 * np.pi)
+    ramp = np.clip(0.5 + 0.5 * (np.cos(theta) * u + np.sin(theta) * v) / np.sqrt(2.0), 0.0, 1.0)
+    cx, cy, sigma = rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0), rng.uniform(0.3, 1.0)
+    blob = np.exp(-((u - cx) ** 2 + (v - cy) ** 2) / (2.0 * sigma ** 2))
+    t = rng.uniform()
+    return t * ramp + (1.0 - t) * blob
+
+
 @dataclass(frozen=True)
 class PipelineAugment:
     """Ranges of the camera-pipeline effects (see the module docstring)."""
@@ -77,6 +98,8 @@ class PipelineAugment:
     gamma: tuple[float, float] = (1.8, 2.6)
     jpeg_quality: tuple[int, int] = (40, 100)
     jpeg_p: float = 0.5
+    glare: tuple[float, float] = (0.01, 0.5)
+    glare_p: float = 0.0
     identity: bool = False
 
     def __post_init__(self):
@@ -85,6 +108,8 @@ class PipelineAugment:
             raise ValueError(f"tone_curves: expected some of {', '.join(TONE_CURVES)}, got {self.tone_curves}")
         if not 0.0 <= self.jpeg_p <= 1.0:
             raise ValueError(f"jpeg_p must be in [0, 1], got {self.jpeg_p}")
+        if not 0.0 <= self.glare_p <= 1.0 or not 0.0 < self.glare[0] <= self.glare[1]:
+            raise ValueError(f"glare_p must be in [0, 1] and glare 0 < lo <= hi, got {self.glare_p}, {self.glare}")
         if not 1 <= self.jpeg_quality[0] <= self.jpeg_quality[1] <= 100:
             raise ValueError(f"jpeg_quality: expected 1 <= lo <= hi <= 100, got {self.jpeg_quality}")
 
@@ -102,6 +127,9 @@ class PipelineAugment:
         a = float(np.exp(rng.uniform(np.log(self.photon_a[0]), np.log(self.photon_a[1]))))
         b = float(rng.uniform(*self.read_sigma)) ** 2
         x = np.maximum(x, 0.0)
+        if self.glare_p > 0 and rng.uniform() < self.glare_p:   # drawn only when on: "photo" is unchanged
+            x = x + glare_field(x.shape[:2], rng)[..., None] * x.mean(axis=(0, 1)) * float(
+                np.exp(rng.uniform(np.log(self.glare[0]), np.log(self.glare[1]))))
         x = x + np.sqrt(a * x + b) * rng.standard_normal(x.shape)
         h, w = x.shape[:2]
         yy, xx = np.mgrid[0:h, 0:w]
@@ -135,5 +163,9 @@ def _photo_linear() -> PipelineAugment:
     return PipelineAugment(tone_curves=TONE_CURVES)
 
 
+def _photo_glare() -> PipelineAugment:
+    return PipelineAugment(glare_p=0.5)
+
+
 AUGMENTS = {"none": PipelineAugment.none, "photo": PipelineAugment,   # TrainConfig.augment -> pipeline
-            "photo-linear": _photo_linear}
+            "photo-linear": _photo_linear, "photo-glare": _photo_glare}
