@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import torch
 
-from relight import frames
+from relight import colour, frames
 from relight.errors import ConfigError, DatasetError
 from relight.imageio import to_srgb8
 from relight.net.augment import HABLE_WHITE, PipelineAugment, hable
@@ -639,7 +639,8 @@ def test_response_gamma_reads_the_curve_off_a_diffuse_ball(gamma):
 
 def test_linear_tone_curve_only_in_photo_linear():
     """``photo`` (the shipped recipe) never draws the linear curve; ``photo-linear`` does, and
-    with every other effect off its codes are proportional to the light."""
+    with every other effect off its codes are proportional to the light; ``photo-srgb`` draws
+    the sRGB transfer and nothing else."""
     from relight.net.augment import AUGMENTS, DISPLAY_CURVES
     assert AUGMENTS["photo"]().tone_curves == DISPLAY_CURVES and "linear" not in DISPLAY_CURVES
     x = _linear(4)
@@ -653,9 +654,11 @@ def test_linear_tone_curve_only_in_photo_linear():
     linear_code = round(255 * 0.2)
     draws = {name: [int(PipelineAugment(tone_curves=AUGMENTS[name]().tone_curves, **off)
                         .apply(grey, np.random.default_rng(s))[0, 0, 0]) for s in range(60)]
-             for name in ("photo", "photo-linear")}
+             for name in ("photo", "photo-linear", "photo-srgb")}
     assert linear_code not in draws["photo"]
     assert 5 <= draws["photo-linear"].count(linear_code) <= 30   # about a quarter of 60
+    srgb_code = round(255 * float(colour.srgb_encode(np.array(0.2))))   # 124, the closed form
+    assert set(draws["photo-srgb"]) == {srgb_code} and 10 <= draws["photo"].count(srgb_code) <= 35
 
 
 def test_response_gamma_refuses_what_it_cannot_fit():

@@ -68,7 +68,8 @@ def add_commands(sub) -> None:
                    help="camera-pipeline augmentation of --source exr at training time: photo = exposure "
                         "+-2 EV, sensor noise, vignetting, blur, sRGB/gamma/filmic tone curves, JPEG 40-100; "
                         "photo-linear = the same with a linear (no) tone curve drawn too, as machine-vision "
-                        "cameras store images; photo-glare = photo with veiling glare on half the images "
+                        "cameras store images; photo-glare = photo with veiling glare on half the images; "
+                        "photo-srgb = photo with the sRGB curve only "
                         "(default none: as the PNGs are written; relight/net/augment.py)")
     t.add_argument("--target-frame", choices=["world", "camera"], default="world",
                    help="what the network learns: world = the paper's 7-vector, the light relative to the "

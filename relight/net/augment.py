@@ -30,7 +30,8 @@ Each effect, drawn independently per image from ``numpy.random.Generator``:
 
 ``AUGMENTS`` names the pipelines training can use: ``"photo"`` draws the first three curves
 and no glare (the shipped photo model's recipe), ``"photo-linear"`` all four curves,
-``"photo-glare"`` the photo pipeline with glare on half the images.
+``"photo-glare"`` the photo pipeline with glare on half the images, ``"photo-srgb"`` the photo
+pipeline with the sRGB curve only (a camera whose response is known; docs/photo.md, ninth round).
 
 ``PipelineAugment.none()`` is the identity pipeline: the sRGB transfer at exposure 1 and
 8-bit quantisation, exactly how the dataset PNGs are written (:func:`relight.imageio.to_srgb8`).
@@ -167,5 +168,9 @@ def _photo_glare() -> PipelineAugment:
     return PipelineAugment(glare_p=0.5)
 
 
+def _photo_srgb() -> PipelineAugment:
+    return PipelineAugment(tone_curves=("srgb",))
+
+
 AUGMENTS = {"none": PipelineAugment.none, "photo": PipelineAugment,   # TrainConfig.augment -> pipeline
-            "photo-linear": _photo_linear, "photo-glare": _photo_glare}
+            "photo-linear": _photo_linear, "photo-glare": _photo_glare, "photo-srgb": _photo_srgb}
