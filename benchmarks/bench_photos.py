@@ -136,6 +136,10 @@ def main(argv=None) -> int:
     ap.add_argument("--backdrop-off", action="store_true",
                     help="also score psm_objects and the gray ball with everything outside the object "
                          "black (the sets' masks): how much the surroundings move each model")
+    ap.add_argument("--surround", action="store_true",
+                    help="also score psm_objects with the surroundings outside the masks changed one way "
+                         "at a time (black, their mean colour, upside down, each row its mean, that profile "
+                         "upside down; relight.net.photos.replace_surround): what in them moves each model")
     ap.add_argument("--data", action="append", default=[], metavar="DIR",
                     help="also score this dataset folder (relight generate output; repeatable)")
     ap.add_argument("--json", default=None, help="also write every summary to this JSON file")
@@ -158,6 +162,9 @@ def main(argv=None) -> int:
             sets.append(("psm_objects (60 photos)", "photo", objects, None))
             if args.backdrop_off:
                 sets.append(("psm_objects, backdrop blacked out (masks)", "photo-off", objects, None))
+            if args.surround:
+                sets += [(f"psm_objects, surroundings {how}", f"photo-surround:{how}", objects, None)
+                         for how in photos.SURROUNDS if not (how == "black" and args.backdrop_off)]
         else:
             print(f"psm_objects: skipped ({objects} not present)")
         if os.path.isdir(spheres):
@@ -182,7 +189,7 @@ def main(argv=None) -> int:
         results = {}
         for label, kind, folder, names in sets:
             print(f"\n{label}")
-            if kind in ("photo", "photo-off"):
+            if kind.startswith("photo"):
                 _, truth = photos.read_photo_set(folder, names)
                 print(f"  {'':<42}  {'n':>4}  direction       cone90  ood    follows x y"
                       "  in-image  slant |err| bias  slope x y    bias x y  bias-free")
@@ -192,9 +199,10 @@ def main(argv=None) -> int:
                 print(f"  {'':<42}  {'n':>4}  cam-frame dir   world dir (true tilt)   colour   cone90  ood"
                       "    follows x y  in-image  slant |err| bias")
             for name, model in models:
-                if kind in ("photo", "photo-off"):
+                if kind.startswith("photo"):
+                    surround = "black" if kind == "photo-off" else kind.partition(":")[2] or None
                     s = photos.summary(photos.score_photo_set(model, folder, names, args.camera_tilt,
-                                                              backdrop_off=kind == "photo-off"))
+                                                              surround=surround))
                     print(_row(f"  {_label(name)}", s))
                 else:
                     s = photos.summary(photos.score_dataset(model, folder, limit=args.n))

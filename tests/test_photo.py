@@ -637,6 +637,39 @@ def test_response_gamma_reads_the_curve_off_a_diffuse_ball(gamma):
     assert abs(fit["gamma"] - gamma) < 0.05 * gamma and abs(fit["a"] - 0.8) < 0.05 and fit["rms"] < 0.01
 
 
+def test_replace_surround_keeps_the_object_and_changes_only_what_it_names():
+    """Every variant keeps the object's pixels exactly; uniform keeps the surroundings' mean
+    and nothing else; rows keep each row's mean (a vertical ramp stays a ramp, a horizontal
+    one goes flat); the upside-down variants reverse the vertical profile; bad input is a
+    ValueError."""
+    from relight.net.photos import SURROUNDS, replace_surround
+    h, w = 20, 30
+    yy, xx = np.mgrid[:h, :w]
+    mask = (yy - 10) ** 2 + (xx - 15) ** 2 < 5 ** 2
+    ramp = (0.01 + 0.002 * (h - 1 - yy))[..., None] * np.array([1.0, 0.8, 0.6])   # brighter above
+    image = np.where(mask[..., None], 0.5 + 0.01 * xx[..., None], ramp + 0.001 * xx[..., None])
+    out = ~mask
+    for how in SURROUNDS:
+        v = replace_surround(image, mask, how)
+        assert v.shape == image.shape and np.array_equal(v[mask], image[mask]), how
+    assert not replace_surround(image, mask, "black")[out].any()
+    uni = replace_surround(image, mask, "uniform")[out]
+    np.testing.assert_allclose(uni, np.broadcast_to(image[out].mean(axis=0), uni.shape), atol=1e-12)
+    rows = replace_surround(image, mask, "rows")
+    np.testing.assert_allclose(rows[:, 0], rows[:, -1], atol=1e-12)   # flat across a row
+    np.testing.assert_allclose(rows[0, 0], image[0][out[0]].mean(axis=0), atol=1e-12)
+    assert rows[0, 0, 0] > rows[-1, 0, 0]   # the profile kept: brighter above
+    flipped = replace_surround(image, mask, "rows-upside-down")
+    np.testing.assert_allclose(flipped[0, 0], rows[-1, 0], atol=1e-12)
+    ud = replace_surround(image, mask, "upside-down")
+    np.testing.assert_allclose(ud[0, 0], image[-1, 0], atol=1e-12)   # the bottom row's pixel on top
+    assert ud[0, 0, 0] < ud[-1, 0, 0]
+    with pytest.raises(ValueError, match="surround"):
+        replace_surround(image, mask, "sideways")
+    with pytest.raises(ValueError, match="expected"):
+        replace_surround(image, mask[:-1], "black")
+
+
 def test_linear_tone_curve_only_in_photo_linear():
     """``photo`` (the shipped recipe) never draws the linear curve; ``photo-linear`` does, and
     with every other effect off its codes are proportional to the light; ``photo-srgb`` draws

@@ -25,7 +25,8 @@ import numpy as np
 from relight import frames, metrics
 
 __all__ = ["SHARED_DATA_ENV", "shared_data_dir", "read_photo_set", "score_photo_set", "score_dataset", "summary",
-           "follows_light", "shading_split", "shrinkage", "response_gamma", "MIN_RESPONSE_PIXELS"]
+           "follows_light", "shading_split", "shrinkage", "response_gamma", "MIN_RESPONSE_PIXELS",
+           "SURROUNDS", "replace_surround"]
 
 SHARED_DATA_ENV = "RELIGHT_SHARED_DATA"
 
@@ -78,9 +79,49 @@ def _cone_covers(preds: list[dict], err: np.ndarray) -> np.ndarray:
     return cones >= err
 
 
-def _backdrop_off(files: list[str]) -> list[np.ndarray]:
-    """Each photo as linear RGB with everything outside its object black: the set's
-    ``NAME.mask.png`` (white where the object is) times the pixels."""
+SURROUNDS = ("black", "uniform", "upside-down", "rows", "rows-upside-down")
+
+
+def replace_surround(image: np.ndarray, mask: np.ndarray, how: str) -> np.ndarray:
+    """``image`` (H, W, 3, linear) with everything outside ``mask`` (H, W, bool: the object)
+    changed one way, the object's pixels kept exactly: a diagnostic of what in the
+    surroundings moves a model's answer (docs/photo.md, ninth round, part 7).
+
+    ``how``: ``"black"``: zero; ``"uniform"``: the surroundings' mean colour everywhere (their
+    level kept, their layout gone); ``"upside-down"``: the image's own surroundings flipped
+    top to bottom (where the mirrored pixel is object, the mean colour); ``"rows"``: each row
+    the mean colour of its own surrounding pixels (the vertical profile kept, everything
+    across a row gone); ``"rows-upside-down"``: that profile reversed, bottom to top. A row
+    with no surrounding pixels takes the mean colour."""
+    x = np.asarray(image)
+    m = np.asarray(mask, bool)
+    if x.ndim != 3 or x.shape[2] != 3 or m.shape != x.shape[:2]:
+        raise ValueError(f"image (H, W, 3) and mask (H, W) expected, got {x.shape} and {m.shape}")
+    if how not in SURROUNDS:
+        raise ValueError(f"surround: expected one of {', '.join(SURROUNDS)}, got {how!r}")
+    out = ~m
+    if not out.any():
+        return x.copy()
+    mean = x[out].mean(axis=0)
+    if how == "black":
+        return x * m[..., None]
+    if how == "uniform":
+        fill = np.broadcast_to(mean, x.shape)
+    elif how == "upside-down":
+        fill = np.where(out[::-1][..., None], x[::-1], mean)
+    else:
+        count = out.sum(axis=1)
+        sums = (x * out[..., None]).sum(axis=1)
+        rows = np.where(count[:, None] > 0, sums / np.maximum(count, 1)[:, None], mean)
+        if how == "rows-upside-down":
+            rows = rows[::-1]
+        fill = np.broadcast_to(rows[:, None, :], x.shape)
+    return np.where(m[..., None], x, fill)
+
+
+def _with_surround(files: list[str], how: str) -> list[np.ndarray]:
+    """Each photo as linear RGB with its surroundings (outside its ``NAME.mask.png``, white
+    where the object is) changed by :func:`replace_surround`."""
     from relight.colour import srgb_decode
     from relight.errors import DatasetError
     from relight.imageio import load_image
@@ -88,29 +129,34 @@ def _backdrop_off(files: list[str]) -> list[np.ndarray]:
     for f in files:
         mask_path = os.path.join(os.path.dirname(f), PHOTO_NAME.match(os.path.basename(f))["name"] + ".mask.png")
         if not os.path.exists(mask_path):
-            raise DatasetError(f"{mask_path}: no mask for {os.path.basename(f)} (needed to black out the backdrop)")
+            raise DatasetError(f"{mask_path}: no mask for {os.path.basename(f)} (needed to change the surroundings)")
         px, enc, _ = load_image(f)
         mask = load_image(mask_path)[0][..., 0] > 0.5
         if mask.shape != px.shape[:2]:
             raise DatasetError(f"{mask_path}: {mask.shape[1]}x{mask.shape[0]} mask for a "
                                f"{px.shape[1]}x{px.shape[0]} photo")
-        out.append((srgb_decode(px) if enc == "srgb" else px) * mask[..., None])
+        out.append(replace_surround(srgb_decode(px) if enc == "srgb" else px, mask, how))
     return out
 
 
 def score_photo_set(model, folder: str, names: tuple[str, ...] | None = None,
-                    camera_tilt_deg: float | None = None, backdrop_off: bool = False) -> dict:
+                    camera_tilt_deg: float | None = None, backdrop_off: bool = False,
+                    surround: str | None = None) -> dict:
     """Predict every image of a photo set (:func:`read_photo_set`) and score it against the
     true light, camera frame. ``camera_tilt_deg``: None = the model's own (camera head; else
     the paper's 45). ``backdrop_off``: everything outside the object (its ``NAME.mask.png``)
-    set to black first, a diagnostic of how much the surroundings move the answer.
+    set to black first, a diagnostic of how much the surroundings move the answer (the same
+    as ``surround="black"``); ``surround``: the surroundings changed by
+    :func:`replace_surround` in that way first.
     Returns per-image arrays ``id``, ``group`` (the object: the name before the light's
     number), ``direction_deg``, ``covered``, ``ood``, ``camera_tilt_deg``,
     ``to_light_camera`` and ``true_to_light_camera``."""
     from relight.net.predict import predict_arrays, predict_files
     files, truth = read_photo_set(folder, names)
     if backdrop_off:
-        preds = predict_arrays(model, _backdrop_off(files), None if camera_tilt_deg is None else
+        surround = "black"
+    if surround is not None:
+        preds = predict_arrays(model, _with_surround(files, surround), None if camera_tilt_deg is None else
                                [camera_tilt_deg] * len(files))
         for p, f in zip(preds, files):
             p["id"] = os.path.splitext(os.path.basename(f))[0]
