@@ -161,7 +161,7 @@ def main(argv=None) -> int:
         if os.path.isdir(objects):
             sets.append(("psm_objects (60 photos)", "photo", objects, None))
             if args.backdrop_off:
-                sets.append(("psm_objects, backdrop blacked out (masks)", "photo-off", objects, None))
+                sets.append(("psm_objects, backdrop blacked out (masks)", "photo-surround:black", objects, None))
             if args.surround:
                 sets += [(f"psm_objects, surroundings {how}", f"photo-surround:{how}", objects, None)
                          for how in photos.SURROUNDS if not (how == "black" and args.backdrop_off)]
@@ -170,7 +170,7 @@ def main(argv=None) -> int:
         if os.path.isdir(spheres):
             sets.append(("psm_spheres gray ball", "photo", spheres, ("gray",)))
             if args.backdrop_off:
-                sets.append(("psm_spheres gray ball, backdrop blacked out (masks)", "photo-off", spheres, ("gray",)))
+                sets.append(("psm_spheres gray ball, backdrop blacked out (masks)", "photo-surround:black", spheres, ("gray",)))
             sets.append(("psm_spheres chrome ball", "photo", spheres, ("chrome",)))
             print(_camera_response(spheres))
         else:
@@ -200,9 +200,8 @@ def main(argv=None) -> int:
                       "    follows x y  in-image  slant |err| bias")
             for name, model in models:
                 if kind.startswith("photo"):
-                    surround = "black" if kind == "photo-off" else kind.partition(":")[2] or None
                     s = photos.summary(photos.score_photo_set(model, folder, names, args.camera_tilt,
-                                                              surround=surround))
+                                                              surround=kind.partition(":")[2] or None))
                     print(_row(f"  {_label(name)}", s))
                 else:
                     s = photos.summary(photos.score_dataset(model, folder, limit=args.n))

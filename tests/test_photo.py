@@ -244,7 +244,7 @@ def test_photo_set_reader(tmp_path):
 
 
 def test_backdrop_off_scores_the_photo_as_if_its_surroundings_were_black(tmp_path):
-    """score_photo_set(backdrop_off=True) on a photo with a lit backdrop gives the answer of
+    """score_photo_set(surround="black") on a photo with a lit backdrop gives the answer of
     the same photo saved with its backdrop black; a missing mask is one DatasetError."""
     from PIL import Image
 
@@ -265,7 +265,7 @@ def test_backdrop_off_scores_the_photo_as_if_its_surroundings_were_black(tmp_pat
         Image.fromarray(np.where(mask[..., None], photo, 0).astype(np.uint8)).save(black / f"ball.{k}.png")
     Image.fromarray((mask * 255).astype(np.uint8)).save(lit / "ball.mask.png")
     model = load_model()
-    off = score_photo_set(model, str(lit), camera_tilt_deg=10.0, backdrop_off=True)
+    off = score_photo_set(model, str(lit), camera_tilt_deg=10.0, surround="black")
     ref = score_photo_set(model, str(black), camera_tilt_deg=10.0)
     plain = score_photo_set(model, str(lit), camera_tilt_deg=10.0)
     assert off["id"] == ref["id"] == ["ball.0", "ball.1"]
@@ -273,7 +273,7 @@ def test_backdrop_off_scores_the_photo_as_if_its_surroundings_were_black(tmp_pat
     assert np.max(np.abs(plain["to_light_camera"] - ref["to_light_camera"])) > 1e-3   # the backdrop mattered
     (lit / "ball.mask.png").unlink()
     with pytest.raises(DatasetError, match="no mask"):
-        score_photo_set(model, str(lit), backdrop_off=True)
+        score_photo_set(model, str(lit), surround="black")
 
 
 def test_calibrate_fits_only_the_ood_detector_in_mode_none(tmp_path):

@@ -140,21 +140,17 @@ def _with_surround(files: list[str], how: str) -> list[np.ndarray]:
 
 
 def score_photo_set(model, folder: str, names: tuple[str, ...] | None = None,
-                    camera_tilt_deg: float | None = None, backdrop_off: bool = False,
-                    surround: str | None = None) -> dict:
+                    camera_tilt_deg: float | None = None, surround: str | None = None) -> dict:
     """Predict every image of a photo set (:func:`read_photo_set`) and score it against the
     true light, camera frame. ``camera_tilt_deg``: None = the model's own (camera head; else
-    the paper's 45). ``backdrop_off``: everything outside the object (its ``NAME.mask.png``)
-    set to black first, a diagnostic of how much the surroundings move the answer (the same
-    as ``surround="black"``); ``surround``: the surroundings changed by
-    :func:`replace_surround` in that way first.
+    the paper's 45). ``surround``: everything outside the object (its ``NAME.mask.png``)
+    changed first by :func:`replace_surround` in that way (``"black"``: the backdrop blacked
+    out), a diagnostic of what in the surroundings moves the answer.
     Returns per-image arrays ``id``, ``group`` (the object: the name before the light's
     number), ``direction_deg``, ``covered``, ``ood``, ``camera_tilt_deg``,
     ``to_light_camera`` and ``true_to_light_camera``."""
     from relight.net.predict import predict_arrays, predict_files
     files, truth = read_photo_set(folder, names)
-    if backdrop_off:
-        surround = "black"
     if surround is not None:
         preds = predict_arrays(model, _with_surround(files, surround), None if camera_tilt_deg is None else
                                [camera_tilt_deg] * len(files))
