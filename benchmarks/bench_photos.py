@@ -138,8 +138,9 @@ def main(argv=None) -> int:
                          "black (the sets' masks): how much the surroundings move each model")
     ap.add_argument("--surround", action="store_true",
                     help="also score psm_objects with the surroundings outside the masks changed one way "
-                         "at a time (black, their mean colour, upside down, each row its mean, that profile "
-                         "upside down; relight.net.photos.replace_surround): what in them moves each model")
+                         "at a time (black, as --backdrop-off, their mean colour, upside down, each row its "
+                         "mean, that profile upside down; relight.net.photos.replace_surround): what in them "
+                         "moves each model")
     ap.add_argument("--data", action="append", default=[], metavar="DIR",
                     help="also score this dataset folder (relight generate output; repeatable)")
     ap.add_argument("--json", default=None, help="also write every summary to this JSON file")
@@ -159,37 +160,37 @@ def main(argv=None) -> int:
         objects = os.path.join(shared, "psm_objects")
         spheres = os.path.join(shared, "psm_spheres")
         if os.path.isdir(objects):
-            sets.append(("psm_objects (60 photos)", "photo", objects, None))
-            if args.backdrop_off:
-                sets.append(("psm_objects, backdrop blacked out (masks)", "photo-surround:black", objects, None))
+            sets.append(("psm_objects (60 photos)", "photo", objects, None, None))
+            if args.backdrop_off or args.surround:
+                sets.append(("psm_objects, backdrop blacked out (masks)", "photo", objects, None, "black"))
             if args.surround:
-                sets += [(f"psm_objects, surroundings {how}", f"photo-surround:{how}", objects, None)
-                         for how in photos.SURROUNDS if not (how == "black" and args.backdrop_off)]
+                sets += [(f"psm_objects, surroundings {how}", "photo", objects, None, how)
+                         for how in photos.SURROUNDS if how != "black"]
         else:
             print(f"psm_objects: skipped ({objects} not present)")
         if os.path.isdir(spheres):
-            sets.append(("psm_spheres gray ball", "photo", spheres, ("gray",)))
+            sets.append(("psm_spheres gray ball", "photo", spheres, ("gray",), None))
             if args.backdrop_off:
-                sets.append(("psm_spheres gray ball, backdrop blacked out (masks)", "photo-surround:black", spheres, ("gray",)))
-            sets.append(("psm_spheres chrome ball", "photo", spheres, ("chrome",)))
+                sets.append(("psm_spheres gray ball, backdrop blacked out (masks)", "photo", spheres, ("gray",), "black"))
+            sets.append(("psm_spheres chrome ball", "photo", spheres, ("chrome",), None))
             print(_camera_response(spheres))
         else:
             print(f"psm_spheres: skipped ({spheres} not present)")
         for folder in args.data:
             if os.path.isfile(os.path.join(folder, "manifest.jsonl")):
-                sets.append((f"{folder}", "data", folder, None))
+                sets.append((f"{folder}", "data", folder, None, None))
             else:
                 print(f"{folder}: skipped (no manifest.jsonl: not a relight dataset)")
         if not args.no_devset:
             mitsuba, cycles, agx = ensure_devset(args.devset, args.n)
-            sets.append((f"dev set, Mitsuba ({args.n} default rooms)", "data", mitsuba, None))
+            sets.append((f"dev set, Mitsuba ({args.n} default rooms)", "data", mitsuba, None, None))
             if cycles:
-                sets.append((f"dev set, Cycles (the same {args.n} scenes)", "data", cycles, None))
-                sets.append((f"dev set, Cycles + Blender's AgX view (the same {args.n})", "data", agx, None))
+                sets.append((f"dev set, Cycles (the same {args.n} scenes)", "data", cycles, None, None))
+                sets.append((f"dev set, Cycles + Blender's AgX view (the same {args.n})", "data", agx, None, None))
         results = {}
-        for label, kind, folder, names in sets:
+        for label, kind, folder, names, surround in sets:
             print(f"\n{label}")
-            if kind.startswith("photo"):
+            if kind == "photo":
                 _, truth = photos.read_photo_set(folder, names)
                 print(f"  {'':<42}  {'n':>4}  direction       cone90  ood    follows x y"
                       "  in-image  slant |err| bias  slope x y    bias x y  bias-free")
@@ -199,9 +200,8 @@ def main(argv=None) -> int:
                 print(f"  {'':<42}  {'n':>4}  cam-frame dir   world dir (true tilt)   colour   cone90  ood"
                       "    follows x y  in-image  slant |err| bias")
             for name, model in models:
-                if kind.startswith("photo"):
-                    s = photos.summary(photos.score_photo_set(model, folder, names, args.camera_tilt,
-                                                              surround=kind.partition(":")[2] or None))
+                if kind == "photo":
+                    s = photos.summary(photos.score_photo_set(model, folder, names, args.camera_tilt, surround))
                     print(_row(f"  {_label(name)}", s))
                 else:
                     s = photos.summary(photos.score_dataset(model, folder, limit=args.n))
