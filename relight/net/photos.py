@@ -99,12 +99,12 @@ def replace_surround(image: np.ndarray, mask: np.ndarray, how: str) -> np.ndarra
         raise ValueError(f"image (H, W, 3) and mask (H, W) expected, got {x.shape} and {m.shape}")
     if how not in SURROUNDS:
         raise ValueError(f"surround: expected one of {', '.join(SURROUNDS)}, got {how!r}")
+    if how == "black":
+        return x * m[..., None]
     out = ~m
     if not out.any():
         return x.copy()
     mean = x[out].mean(axis=0)
-    if how == "black":
-        return x * m[..., None]
     if how == "uniform":
         fill = np.broadcast_to(mean, x.shape)
     elif how == "upside-down":
