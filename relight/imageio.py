@@ -9,7 +9,7 @@ half-written image under its final name.
 from __future__ import annotations
 
 __all__ = [
-    "write_exr", "read_exr", "to_srgb8", "write_png", "write_srgb8", "MAX_IMAGE_PIXELS", "load_image",
+    "write_exr", "read_exr", "to_srgb8", "write_png", "write_srgb8", "write_mask", "read_mask", "MAX_IMAGE_PIXELS", "load_image",
     "read_image", "read_srgb8",
 ]
 
@@ -89,6 +89,24 @@ def write_srgb8(path: str | os.PathLike, srgb8: np.ndarray, inputs=()) -> None:
     from PIL import Image
     pixels = Image.fromarray(np.ascontiguousarray(srgb8, dtype=np.uint8))
     atomic_write(path, lambda tmp: pixels.save(tmp, format="PNG", compress_level=1), inputs)
+
+
+def write_mask(path: str | os.PathLike, coverage: np.ndarray, inputs=()) -> None:
+    """Write a mask ``(H, W)`` of coverage in [0, 1] as an 8-bit grey PNG (255: wholly
+    covered), atomically; :func:`read_mask` reads it back."""
+    from PIL import Image
+    codes = np.round(np.clip(np.asarray(coverage, np.float64), 0.0, 1.0) * 255.0).astype(np.uint8)
+    if codes.ndim != 2:
+        raise ValueError(f"a mask is (H, W), got shape {codes.shape}")
+    pixels = Image.fromarray(np.ascontiguousarray(codes), mode="L")
+    atomic_write(path, lambda tmp: pixels.save(tmp, format="PNG", compress_level=1), inputs)
+
+
+def read_mask(path: str | os.PathLike) -> np.ndarray:
+    """A mask written by :func:`write_mask` (or any grey or RGB image: its first channel)
+    as coverage ``(H, W)`` float32 in [0, 1]."""
+    pixels, _, _ = load_image(path)
+    return np.asarray(pixels[..., 0] if pixels.ndim == 3 else pixels, np.float32)
 
 
 MAX_IMAGE_PIXELS = 8192 * 8192   # larger images are refused (decompression bombs)

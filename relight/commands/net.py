@@ -71,6 +71,10 @@ def add_commands(sub) -> None:
                         "cameras store images; photo-glare = photo with veiling glare on half the images; "
                         "photo-srgb = photo with the sRGB curve only "
                         "(default none: as the PNGs are written; relight/net/augment.py)")
+    t.add_argument("--surround", choices=["keep", "black"], default="keep",
+                   help="black: train on the objects alone, everything outside the record's object mask set "
+                        "to black before the camera pipeline (needs --source exr and a dataset generated with "
+                        "\"object_masks\": true; default keep)")
     t.add_argument("--target-frame", choices=["world", "camera"], default="world",
                    help="what the network learns: world = the paper's 7-vector, the light relative to the "
                         "camera in the world's angles (default); camera = the light in the camera frame "
@@ -140,7 +144,7 @@ def cmd_train(args) -> int:
                       kappa_detach=not args.kappa_into_features,
                       camera_weight=float(args.camera_weight), source=args.source, augment=args.augment,
                       target_frame=args.target_frame, epoch_images=args.epoch_images,
-                      loss_weights=dataclasses.replace(args.loss_weights, kappa=args.kappa_weight))
+                      surround=args.surround, loss_weights=dataclasses.replace(args.loss_weights, kappa=args.kappa_weight))
     row = train(cfg, args.out, resume=args.resume, progress=not args.quiet)
     if row:
         print(f"{args.out}: epoch {row['epoch']}, val loss {row['val_loss']:.4f}, val mean direction "

@@ -147,7 +147,7 @@ def check_record(rec, where: str) -> None:
     if not isinstance(rid, str) or not rid or "/" in rid or "\\" in rid or rid in (".", ".."):
         raise DatasetError(f"{where}: 'id' must be a plain name, got {rid!r}")
     where = f"{where} (id {rid!r})"
-    for key in ("image", "exr", "scene"):   # exr and scene may be absent (hand-made datasets)
+    for key in ("image", "exr", "scene", "mask"):   # all but image may be absent (hand-made datasets; masks)
         if (key in rec or key == "image") and not isinstance(rec.get(key), str):
             raise DatasetError(f"{where}: {key!r} must be a relative path string, got {rec.get(key)!r}")
     if rec.get("split") not in SPLITS:

@@ -7,6 +7,7 @@ Layout of a dataset folder (see ``shared/conventions.md``)::
     images/ID.png     8-bit sRGB, for the network
     exr/ID.exr        linear HDR float32
     scenes/ID.json    the scene description that re-renders the image exactly
+    masks/ID.png      (config object_masks only) each pixel's share covered by the objects
 
 Crash safety: every file is written to a temporary name and renamed; an image's
 manifest record is appended (one ``write`` of one line, then flush and fsync) only
@@ -101,13 +102,14 @@ def _prepare(cfg: GeneratorConfig, seed: int, index: int, timer=NO_TIMER):
     return spec, meshes
 
 
-def _write(out: str, spec: SceneSpec, image: np.ndarray, split: str, timer=NO_TIMER) -> dict:
-    """Stage 3 (writer thread): the scene file, EXR and PNG, each atomically; returns
-    the record to append once all three are in place."""
-    from relight.imageio import write_exr, write_png
+def _write(out: str, spec: SceneSpec, image: np.ndarray, split: str, timer=NO_TIMER,
+           mask: np.ndarray | None = None) -> dict:
+    """Stage 3 (writer thread): the scene file, EXR and PNG (and with ``mask``, the
+    object mask), each atomically; returns the record to append once all are in place."""
+    from relight.imageio import write_exr, write_mask, write_png
     from relight.fileio import write_text
-    paths = [os.path.join(out, sub, f"{spec.id}{ext}") for sub, ext in
-             (("scenes", ".json"), ("exr", ".exr"), ("images", ".png"))]
+    parts = [("scenes", ".json"), ("exr", ".exr"), ("images", ".png")] + ([("masks", ".png")] if mask is not None else [])
+    paths = [os.path.join(out, sub, f"{spec.id}{ext}") for sub, ext in parts]
     try:
         with timer.stage("write: scene JSON"):
             write_text(paths[0], spec.to_json())
@@ -115,12 +117,18 @@ def _write(out: str, spec: SceneSpec, image: np.ndarray, split: str, timer=NO_TI
             write_exr(paths[1], image)
         with timer.stage("write: PNG"):
             write_png(paths[2], image)
+        if mask is not None:
+            with timer.stage("write: mask"):
+                write_mask(paths[3], mask)
     except BaseException:   # no record will name them: leave no file of this image behind
         for path in paths:
             with contextlib.suppress(OSError):
                 os.remove(path)
         raise
-    return record_for(spec, split)
+    record = record_for(spec, split)
+    if mask is not None:
+        record["mask"] = f"masks/{spec.id}.png"
+    return record
 
 
 class _Inline:
@@ -172,10 +180,15 @@ def _pipeline(out: str, cfg: GeneratorConfig, seed: int, indices: list[int], on_
                 t0 = time.perf_counter()
                 image = template.render(spec.render.spp, spec.render.seed, timer=timer)
                 render_s = time.perf_counter() - t0
+                if cfg.object_masks:
+                    with timer.stage("object mask"):
+                        mask = template.object_mask()
+                else:
+                    mask = None
 
-            def write_and_record(spec=spec, image=image, render_s=render_s, index=indices[k]):
+            def write_and_record(spec=spec, image=image, render_s=render_s, index=indices[k], mask=mask):
                 with timer.image(index):
-                    on_record(_write(out, spec, image, split_of(spec.id, cfg.split), timer), render_s)
+                    on_record(_write(out, spec, image, split_of(spec.id, cfg.split), timer, mask), render_s)
             with timer.image(indices[k]), timer.stage("hand-off to helper threads"):
                 pending_writes.append(writer.submit(write_and_record))
             with timer.image(indices[k]), timer.stage("wait: writes"):
@@ -312,8 +325,9 @@ def _generate_locked(out: str, count: int, seed: int, cfg: GeneratorConfig,
                      progress: bool, threads: int | None, stats: GenerateStats,
                      scheduler=None, timer=NO_TIMER, overlap: bool = True) -> GenerateStats:
     from tqdm import tqdm
-    remove_temps(out, ("", "images", "exr", "scenes"))   # left by killed runs (we hold the lock)
-    for sub in ("images", "exr", "scenes"):
+    subs = ("images", "exr", "scenes") + (("masks",) if cfg.object_masks else ())
+    remove_temps(out, ("",) + subs)   # left by killed runs (we hold the lock)
+    for sub in subs:
         os.makedirs(os.path.join(out, sub), exist_ok=True)
     manifest_path = os.path.join(out, MANIFEST)
     done = set()

@@ -112,6 +112,9 @@ class GeneratorConfig:
     backdrop_fraction: float = 0.0
     backdrop_albedo: tuple[float, float] = (0.005, 0.2)   # grey albedo, drawn log-uniform
     backdrop_gap: tuple[float, float] = (0.3, 3.0)        # gap behind the objects, in largest object radii
+    # Object masks (false: none, the folder as before): masks/ID.png, each pixel's share covered by
+    # the objects (SceneTemplate.object_mask), named by the record's "mask" field. No draw depends on it.
+    object_masks: bool = False
 
     def __post_init__(self):
         def rng_ok(name, lo_min, hi_max):
@@ -173,6 +176,8 @@ class GeneratorConfig:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and not isinstance(v, bool) and 0.0 <= v <= 1.0):
                 raise ConfigError(f"{name}: expected a number in [0, 1], got {v!r}")
+        if not isinstance(self.object_masks, bool):
+            raise ConfigError(f"object_masks: expected true or false, got {self.object_masks!r}")
         if self.glossy_fraction + self.metal_fraction > 1.0:
             raise ConfigError("glossy_fraction + metal_fraction: at most 1")
         if self.mesh_dir is not None and not mesh_files(self.mesh_dir):
@@ -223,7 +228,8 @@ LEGACY_CONFIG: dict = {"sampler": LEGACY_SAMPLER, "colour_prior": "hsv", "object
                        "void_fraction": 0.0, "glossy_fraction": 0.0, "metal_fraction": 0.0,
                        "flash_fraction": 0.0, "flash_cone_deg": 40.0, "ambient_fraction": 0.0,
                        "ambient_ratio": [0.05, 0.5], "void_albedo": [0.0, VOID_ALBEDO],
-                       "backdrop_fraction": 0.0, "backdrop_albedo": [0.005, 0.2], "backdrop_gap": [0.3, 3.0]}
+                       "backdrop_fraction": 0.0, "backdrop_albedo": [0.005, 0.2], "backdrop_gap": [0.3, 3.0],
+                       "object_masks": False}
 
 
 BUILTIN_MESHES = "builtin"   # mesh_dir value: the meshes shipped in relight/assets/meshes

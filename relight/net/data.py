@@ -34,12 +34,11 @@ from relight.dataset import SPLIT_CHOICES, DatasetError, read_manifest, safe_joi
 
 SPLITS = SPLIT_CHOICES   # one split or "all"
 SOURCES = ("image", "exr")   # what a LightDataset reads: the 8-bit PNG, or the linear EXR
+SURROUNDS = ("keep", "black")   # what it does with the pixels outside the objects (docs/photo.md, tenth round)
 
 
 def linear_at_res(path: str, res: int) -> np.ndarray:
     """A linear EXR centre-cropped to a square and area-averaged to ``(res, res, 3)`` float32."""
-    import cv2
-
     from relight.imageio import ImageError, read_exr
     if not os.path.isfile(path):
         raise DatasetError(f"dataset EXR missing: {path}")
@@ -47,6 +46,27 @@ def linear_at_res(path: str, res: int) -> np.ndarray:
         img = np.asarray(read_exr(path), dtype=np.float32)[..., :3]
     except ImageError as exc:
         raise DatasetError(f"dataset EXR: {exc}") from None
+    return square_at_res(img, res)
+
+
+def mask_at_res(path: str, res: int) -> np.ndarray:
+    """An object mask (``masks/ID.png``, coverage) cropped and area-averaged as
+    :func:`linear_at_res` crops its image: ``(res, res)`` float32 in [0, 1]."""
+    from relight.imageio import ImageError, read_mask
+    if not os.path.isfile(path):
+        raise DatasetError(f"dataset mask missing: {path}")
+    try:
+        return square_at_res(read_mask(path), res)
+    except ImageError as exc:
+        raise DatasetError(f"dataset mask: {exc}") from None
+
+
+def square_at_res(img: np.ndarray, res: int) -> np.ndarray:
+    """``img`` (H, W[, C]) centre-cropped to a square and area-averaged (or, when smaller,
+    interpolated) to ``res`` x ``res``, float32."""
+    import cv2
+
+    img = np.asarray(img, dtype=np.float32)
     h, w = img.shape[:2]
     side = min(h, w)
     img = img[(h - side) // 2:(h - side) // 2 + side, (w - side) // 2:(w - side) // 2 + side]
@@ -131,7 +151,8 @@ class LightDataset(Dataset):
 
     def __init__(self, data_dir, split: str = "train", res: int = 128,
                  flip: bool = False, seed: int = 0, cache: bool = True, records: list[dict] | None = None,
-                 image_key: str = "image", source: str = "image", augment=None, target_frame: str = "world"):
+                 image_key: str = "image", source: str = "image", augment=None, target_frame: str = "world",
+                 surround: str = "keep"):
         self.data_dirs = dataset_folders(data_dir)
         self.data_dir = self.data_dirs[0]
         if records is not None and len(self.data_dirs) > 1:
@@ -141,6 +162,10 @@ class LightDataset(Dataset):
             raise ValueError(f"source must be one of {', '.join(SOURCES)}, got {source!r}")
         self.source = source         # "image": the 8-bit PNG; "exr": the linear EXR through ``augment``
         self.augment = augment       # a relight.net.augment.PipelineAugment (source "exr"), or None
+        if surround not in SURROUNDS or (surround != "keep" and source != "exr"):
+            raise ValueError(f"surround must be one of {', '.join(SURROUNDS)} (not keep: with source exr), "
+                             f"got {surround!r} with source {source!r}")
+        self.surround = surround     # "black": the linear image times its object mask (the object alone)
         frames.check_target_frame(target_frame)
         self.target_frame = target_frame
         self.split = split
@@ -187,7 +212,13 @@ class LightDataset(Dataset):
         key = (folder, rec["id"], "exr")
         img = self._cache.get(key)
         if img is None:
-            img = linear_at_res(safe_join(self.data_dirs[folder], rec["exr"]), self.res).astype(np.float16)
+            img = linear_at_res(safe_join(self.data_dirs[folder], rec["exr"]), self.res)
+            if self.surround == "black":   # before the camera pipeline: a black surround photographed
+                if not isinstance(rec.get("mask"), str):
+                    raise DatasetError(f"record {rec['id']!r} has no object mask (generate with "
+                                       "\"object_masks\": true for --surround black)")
+                img = img * mask_at_res(safe_join(self.data_dirs[folder], rec["mask"]), self.res)[..., None]
+            img = img.astype(np.float16)
             if self.cache:
                 self._cache[key] = img
         return img.astype(np.float32)

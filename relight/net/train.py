@@ -134,6 +134,7 @@ class TrainConfig:
     augment: str = "none"
     target_frame: str = "world"
     epoch_images: int | None = None
+    surround: str = "keep"
 
     def __post_init__(self):
         folders = tuple(dataset_folders(self.data_dir))   # one folder stays a plain string (older runs)
@@ -166,6 +167,11 @@ class TrainConfig:
                                 f"{', '.join(AUGMENTS)}, got {self.source!r} and {self.augment!r}")
         if self.augment != "none" and self.source != "exr":
             raise TrainingError("--augment works on the linear EXRs: give --source exr")
+        from relight.net.data import SURROUNDS
+        if self.surround not in SURROUNDS:
+            raise TrainingError(f"surround must be one of {', '.join(SURROUNDS)}, got {self.surround!r}")
+        if self.surround != "keep" and self.source != "exr":
+            raise TrainingError("--surround black works on the linear EXRs and their masks: give --source exr")
         if self.image_key not in ("image", "image_masked"):
             raise TrainingError(f"image_key must be 'image' or 'image_masked', got {self.image_key!r}")
         from relight.frames import check_target_frame
@@ -180,7 +186,7 @@ class TrainConfig:
 
 def _check_resume_compatible(saved: dict, cfg: TrainConfig) -> None:
     for key in ("res", "batch_size", "seed", "width", "flip", "arch", "kappa_detach", "init", "image_key",
-                "camera_weight", "target_frame", "epoch_images"):
+                "camera_weight", "target_frame", "epoch_images", "surround"):
         if key not in saved and key not in LATER_DEFAULTS:
             continue
         was = saved.get(key, LATER_DEFAULTS.get(key))
@@ -190,7 +196,7 @@ def _check_resume_compatible(saved: dict, cfg: TrainConfig) -> None:
 
 # Settings added after the first runs: a settings.json without the key means this value.
 LATER_DEFAULTS = {"camera_weight": 0.0, "source": "image", "augment": "none", "target_frame": "world",
-                  "epoch_images": None}
+                  "epoch_images": None, "surround": "keep"}
 
 
 def net_config(cfg: TrainConfig, saved: dict | None = None) -> NetConfig:
@@ -436,9 +442,10 @@ def _restore(cfg: TrainConfig, out_dir: str, resume: bool, ddp, writer: bool) ->
     from relight.net.augment import AUGMENTS
     train_set = LightDataset(cfg.data_dir, cfg.train_split, cfg.res, flip=cfg.flip, seed=cfg.seed,
                              image_key=cfg.image_key, source=cfg.source, target_frame=cfg.target_frame,
-                             augment=AUGMENTS[cfg.augment]() if cfg.augment != "none" else None)
+                             augment=AUGMENTS[cfg.augment]() if cfg.augment != "none" else None,
+                             surround=cfg.surround)
     val_set = LightDataset(cfg.data_dir, cfg.val_split, cfg.res, image_key=cfg.image_key, source=cfg.source,
-                           target_frame=cfg.target_frame)
+                           target_frame=cfg.target_frame, surround=cfg.surround)
     if ddp is not None:
         _ddp_agree(train_set), _ddp_agree(val_set)
     if len(train_set) == 0:

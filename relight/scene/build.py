@@ -21,7 +21,7 @@ kept for the benchmark and as the readable reference of what a template holds.
 from __future__ import annotations
 
 __all__ = [
-    "N_OBJECT_SLOTS", "N_WALL_SLOTS", "FLOOR_HALF_SIZE_M", "FLOOR_TILE_M", "HIDDEN_DEPTH_M", "FACE_ALBEDO",
+    "N_OBJECT_SLOTS", "N_WALL_SLOTS", "MASK_SUBSAMPLES", "FLOOR_HALF_SIZE_M", "FLOOR_TILE_M", "HIDDEN_DEPTH_M", "FACE_ALBEDO",
     "TemplateKey", "object_mesh", "template_key", "wall_to_world", "face_albedos", "part_labels",
     "SceneTemplate", "texture", "SceneBuilder", "build_naive", "render_spec",
 ]
@@ -46,6 +46,7 @@ FLOOR_HALF_SIZE_M = 400.0   # floor square reaches past every wall corner
 FLOOR_TILE_M = 10.0         # the floor texture repeats every 10 m
 HIDDEN_DEPTH_M = -1000.0    # where unused object slots are parked
 FACE_ALBEDO = "face_albedo"  # per-face mesh attribute read by the object BSDFs (parts)
+MASK_SUBSAMPLES = 4         # object masks: 4 x 4 primary rays per pixel (coverage in steps of 1/16)
 
 
 @dataclass(frozen=True)
@@ -293,6 +294,29 @@ class SceneTemplate:
     def render(self, spp: int, seed: int, timer=NO_TIMER) -> np.ndarray:
         """Render the current state: ``(res, res, 3)`` float32 linear RGB."""
         return render.render_scene(self.scene, spp, seed, self.key.sampler, timer=timer)
+
+    def object_mask(self, subsamples: int = MASK_SUBSAMPLES) -> np.ndarray:
+        """Each pixel's share ``(H, W)`` float32 in [0, 1] covered by the scene's objects
+        as the camera sees them (the current state): a ``subsamples`` x ``subsamples``
+        grid of primary rays per pixel, each counting when its first hit is an object
+        (not a wall, the floor or a backdrop; parked slots lie below the floor). Exact
+        in the limit, with no sampling noise (a fixed grid)."""
+        mi = backend.mitsuba()
+        sensor = self.scene.sensors()[0]
+        w, h = (int(v) for v in sensor.film().size())
+        n = int(subsamples)
+        j, i = np.meshgrid(np.arange(h * n), np.arange(w * n), indexing="ij")
+        uv = mi.Point2f(((i.ravel() + 0.5) / (w * n)).astype(np.float32),
+                        ((j.ravel() + 0.5) / (h * n)).astype(np.float32))
+        rays, _ = sensor.sample_ray(0.0, 0.5, uv, mi.Point2f(0.5, 0.5))
+        hit_shape = self.scene.ray_intersect(rays).shape
+        on_object = mi.Bool(False)
+        objects = {f"obj{i}" for i in range(len(self.key.slots))}
+        for shape in self.scene.shapes():
+            if shape.id() in objects:
+                on_object |= hit_shape == mi.ShapePtr(shape)
+        hits = np.array(on_object, dtype=np.float32).reshape(h, n, w, n)
+        return hits.mean(axis=(1, 3))
 
     def render_under(self, position_m, intensity, spp: int, seed: int) -> np.ndarray:
         """Move the point light to ``position_m`` with radiant ``intensity`` (W/sr per

@@ -1,0 +1,148 @@
+"""Object masks (generator config ``object_masks``) and training on the objects alone
+(``relight train --surround black``): the mask against the closed form of a sphere's
+silhouette, the generator's files and records, and the dataset's blacked-out images."""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+
+import numpy as np
+import pytest
+
+from relight import frames
+from relight.generator.sampling import GeneratorConfig
+
+from conftest import sphere_scene
+
+CFG = GeneratorConfig(res=24, spp=2, void_fraction=0.5, fov_range_deg=(30.0, 60.0),
+                      view_halfwidth_m=(2.5, 4.0), split=(0.5, 0.5, 0.0))
+
+
+def _sphere_coverage(spec, centre, radius, res: int, n: int) -> np.ndarray:
+    """Closed form: the share of each pixel's ``n`` x ``n`` grid of pinhole rays that pass
+    within ``radius`` of ``centre`` (the silhouette of a sphere, in perspective)."""
+    cam = spec.camera
+    f = 0.5 * res / math.tan(math.radians(cam.fov_deg) / 2.0)
+    s = (np.arange(res * n) + 0.5) / n                       # sample positions in pixels
+    x, y = np.meshgrid(s, s)                                 # rows: y down the image
+    d_cam = np.stack([x - res / 2.0, -(y - res / 2.0), -np.full_like(x, f)], axis=-1)
+    d_cam /= np.linalg.norm(d_cam, axis=-1, keepdims=True)
+    d = frames.camera_to_world_vector(d_cam.reshape(-1, 3), cam.tilt_deg, cam.pan_deg)
+    to_c = np.asarray(centre) - cam.position_m
+    along = d @ to_c
+    miss2 = np.sum(to_c ** 2) - along ** 2                   # squared distance of the ray from the centre
+    hit = (miss2 < radius ** 2) & (along > 0)
+    return hit.reshape(res, n, res, n).mean(axis=(1, 3))
+
+
+def test_object_mask_is_the_sphere_silhouette(mi):
+    from relight.scene import build
+    spec = sphere_scene(res=32, camera_tilt_deg=20.0)
+    template = build.build_naive(spec)
+    mask = template.object_mask()
+    v, _ = build._object_vertices(spec.objects[0], build.object_mesh(spec.objects[0]))
+    v = v.astype(np.float64)
+    centre = (v.max(axis=0) + v.min(axis=0)) / 2.0
+    radius = float(np.median(np.linalg.norm(v - centre, axis=1)))    # vertices lie on the sphere
+    truth = _sphere_coverage(spec, centre, radius, 32, build.MASK_SUBSAMPLES)
+    assert mask.shape == (32, 32) and mask.dtype == np.float32
+    assert truth.sum() > 30                                          # the sphere is well in view
+    # the mesh is a tessellated sphere: its silhouette lies within a few % of the radius of the
+    # true one, so only boundary pixels may differ, by a few of their 16 rays
+    inner = _sphere_coverage(spec, centre, 0.97 * radius, 32, build.MASK_SUBSAMPLES)
+    outer = _sphere_coverage(spec, centre, 1.01 * radius, 32, build.MASK_SUBSAMPLES)
+    assert np.all(mask >= inner - 1e-6) and np.all(mask <= outer + 1e-6)
+    assert abs(mask.sum() - truth.sum()) < 0.04 * truth.sum()
+    assert np.any((mask > 0) & (mask < 1))                          # the edge is fractional
+
+
+def test_object_mask_follows_the_camera(mi):
+    """Turning the camera away from the sphere empties the mask (no wall, floor or
+    parked slot counts as an object)."""
+    from relight.scene import build
+    spec = sphere_scene(res=16)
+    away = dataclasses.replace(spec, camera=dataclasses.replace(spec.camera, pan_deg=0.0, tilt_deg=-30.0))
+    assert build.build_naive(spec).object_mask().sum() > 5
+    assert build.build_naive(away).object_mask().sum() == 0
+
+
+def test_generator_writes_masks_without_changing_the_images(tmp_path, mi):
+    from relight.dataset import read_manifest
+    from relight.generator.run import generate
+    from relight.imageio import read_mask
+    plain, masked = tmp_path / "plain", tmp_path / "masked"
+    generate(plain, 4, seed=3, cfg=CFG, progress=False)
+    generate(masked, 4, seed=3, cfg=dataclasses.replace(CFG, object_masks=True), progress=False)
+    assert not (plain / "masks").exists()
+    assert all("mask" not in r for r in read_manifest(plain))
+    for rec in read_manifest(masked):
+        assert rec["mask"] == f"masks/{rec['id']}.png"
+        for sub in ("exr", "image"):                                 # the images are untouched
+            assert (plain / rec[sub]).read_bytes() == (masked / rec[sub]).read_bytes()
+        coverage = read_mask(masked / rec["mask"])
+        assert coverage.shape == (24, 24) and 0 < coverage.sum() < 24 * 24
+    # the mask is the scene file's own: the same from the template re-built from it
+    from relight.scene import build
+    from relight.scene.spec import load_scene
+    rec = read_manifest(masked)[0]
+    again = build.build_naive(load_scene(masked / rec["scene"])).object_mask()
+    np.testing.assert_allclose(read_mask(masked / rec["mask"]), again, atol=0.5 / 255 + 1e-6)
+    # a card without the setting (made before it) resumes with masks off; with them on it is refused
+    card = json.loads((plain / "dataset.json").read_text())
+    del card["config"]["object_masks"]
+    (plain / "dataset.json").write_text(json.dumps(card))
+    assert generate(plain, 5, seed=3, cfg=CFG, progress=False).written == 1
+    from relight.dataset import DatasetError
+    with pytest.raises(DatasetError, match="object_masks False there, True here"):
+        generate(plain, 6, seed=3, cfg=dataclasses.replace(CFG, object_masks=True), progress=False)
+
+
+def test_object_masks_setting_is_checked():
+    from relight.errors import ConfigError
+    with pytest.raises(ConfigError, match="object_masks: expected true or false"):
+        dataclasses.replace(CFG, object_masks=1)
+
+
+def test_mask_png_round_trip(tmp_path):
+    from relight.imageio import read_mask, write_mask
+    coverage = np.linspace(0.0, 1.0, 48, dtype=np.float32).reshape(6, 8)
+    write_mask(tmp_path / "m.png", coverage)
+    np.testing.assert_allclose(read_mask(tmp_path / "m.png"), coverage, atol=0.5 / 255 + 1e-6)
+    with pytest.raises(ValueError):
+        write_mask(tmp_path / "bad.png", np.zeros((4, 4, 3)))
+
+
+def test_surround_black_is_the_image_times_its_mask(tmp_path, mi):
+    from relight.dataset import DatasetError
+    from relight.generator.run import generate
+    from relight.net.data import LightDataset, linear_at_res, mask_at_res
+    out = tmp_path / "d"
+    generate(out, 3, seed=5, cfg=dataclasses.replace(CFG, object_masks=True), progress=False)
+    keep = LightDataset(out, "all", res=16, source="exr")
+    black = LightDataset(out, "all", res=16, source="exr", surround="black")
+    for i, rec in enumerate(black.records):
+        m = mask_at_res(str(out / rec["mask"]), 16)
+        full = linear_at_res(str(out / rec["exr"]), 16)
+        got = black.linear_image(i)
+        assert np.all(got[m == 0] == 0)                                  # outside the objects: black
+        inside = m == 1
+        assert inside.any()
+        np.testing.assert_allclose(got[inside], keep.linear_image(i)[inside], rtol=1e-3)   # float16 cache
+        np.testing.assert_allclose(got, full * m[..., None], rtol=1e-3, atol=1e-6)
+    with pytest.raises(ValueError, match="surround"):
+        LightDataset(out, "all", res=16, source="image", surround="black")
+    plain = tmp_path / "plain"
+    generate(plain, 1, seed=5, cfg=CFG, progress=False)
+    with pytest.raises(DatasetError, match="no object mask"):
+        LightDataset(plain, "all", res=16, source="exr", surround="black").linear_image(0)
+
+
+def test_train_surround_needs_the_exrs(tmp_path, capsys):
+    from relight.cli import main
+    try:
+        code = main(["train", "--data", str(tmp_path), "--out", str(tmp_path / "run"), "--surround", "black"])
+    except SystemExit as exc:
+        code = exc.code
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "--surround black works on the linear EXRs" in err and "\n" not in err
