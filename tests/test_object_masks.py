@@ -146,3 +146,102 @@ def test_train_surround_needs_the_exrs(tmp_path, capsys):
         code = exc.code
     err = capsys.readouterr().err.strip()
     assert code == 2 and "--surround black works on the linear EXRs" in err and "\n" not in err
+
+
+def _alone_model(path, surround: str = "black") -> str:
+    """An untrained narrow camera-frame network of the objects alone, saved at ``path``."""
+    import torch
+
+    from relight.net.io import save_model
+    from relight.net.model import LightNet, NetConfig
+    torch.manual_seed(0)
+    save_model(str(path), LightNet(NetConfig(res=32, width=8, target_frame="camera", surround=surround)), {})
+    return str(path)
+
+
+def test_surround_is_stored_with_the_model_and_older_files_keep_theirs(tmp_path):
+    from relight.net.io import load_model_file
+    from relight.net.model import NetConfig
+    assert load_model_file(_alone_model(tmp_path / "a.safetensors")).config.surround == "black"
+    config = NetConfig(res=32, width=8).to_dict()
+    del config["surround"]                                           # a file written before it
+    assert NetConfig.from_dict(config).surround == "keep"
+    with pytest.raises(ValueError, match="surround"):
+        NetConfig(surround="grey")
+
+
+def test_objects_alone_closed_form():
+    from relight.colour import srgb_encode
+    from relight.errors import ImageError
+    from relight.net.predict import objects_alone
+    img = np.full((2, 3, 3), 255, np.uint8)
+    mask = np.array([[1.0, 0.5, 0.0], [1.0, 1.0, 0.0]])
+    out = objects_alone(img, mask, linear=False)
+    half = int(np.round(srgb_encode(np.array(0.5)) * 255.0))        # linear 0.5 in 8-bit sRGB
+    assert half in (187, 188)
+    assert out[0, 0, 0] == 255 and out[0, 1, 0] == half and out[0, 2, 0] == 0 and out[1, 2, 0] == 0
+    lin = objects_alone(np.full((2, 3, 3), 0.8, np.float32), mask)
+    np.testing.assert_allclose(lin[..., 1], 0.8 * mask, rtol=1e-6)
+    with pytest.raises(ImageError, match="mask of 2x2 pixels for an image of 3x2"):
+        objects_alone(img, np.ones((2, 2)))
+
+
+def test_predict_with_a_mask_reads_the_objects_alone(tmp_path, capsys):
+    """``relight predict --mask``: the answer of the same photograph saved with its
+    surroundings black; a model of the objects alone refuses an image without a mask."""
+    from PIL import Image
+
+    from relight.cli import main
+    from relight.errors import ImageError
+    from relight.net.predict import load_model, predict_files
+    rng = np.random.default_rng(4)
+    yy, xx = np.mgrid[:40, :56]
+    mask = (yy - 20) ** 2 + (xx - 26) ** 2 < 12 ** 2
+    shade = (120 + 100 * xx / 56.0)[..., None] * np.ones(3)
+    photo = np.where(mask[..., None], shade, rng.integers(30, 200, size=(40, 56, 3))).astype(np.uint8)
+    Image.fromarray(photo).save(tmp_path / "p.png")
+    Image.fromarray(np.where(mask[..., None], photo, 0).astype(np.uint8)).save(tmp_path / "black.png")
+    Image.fromarray((mask * 255).astype(np.uint8)).save(tmp_path / "p.mask.png")
+    alone = load_model(_alone_model(tmp_path / "alone.safetensors"))
+    masked = predict_files(alone, [str(tmp_path / "p.png")], 20.0, masks=[str(tmp_path / "p.mask.png")])[0]
+    ref = predict_files(load_model(_alone_model(tmp_path / "keep.safetensors", "keep")),
+                        [str(tmp_path / "black.png")], 20.0)[0]
+    np.testing.assert_allclose(masked["to_light_camera"], ref["to_light_camera"], atol=1e-6)
+    with pytest.raises(ImageError, match="reads the objects alone"):
+        predict_files(alone, [str(tmp_path / "p.png")], 20.0)
+
+    def run(*argv):
+        try:
+            code = main(list(argv))
+        except SystemExit as exc:
+            code = exc.code
+        return code, capsys.readouterr()
+    model = str(tmp_path / "alone.safetensors")
+    out = str(tmp_path / "pred.json")
+    code, io = run("predict", str(tmp_path / "p.png"), "--model", model, "--camera-tilt", "20", "--out", out)
+    assert code == 2 and "reads the objects alone" in io.err and not (tmp_path / "pred.json").exists()
+    code, io = run("predict", str(tmp_path / "p.png"), str(tmp_path / "black.png"), "--mask",
+                   str(tmp_path / "p.mask.png"), "--model", model, "--out", out)
+    assert code == 2 and "1 masks for 2 images" in io.err
+    code, io = run("predict", str(tmp_path / "p.png"), "--mask", str(tmp_path / "p.mask.png"), "--model", model,
+                   "--camera-tilt", "20", "--out", out)
+    assert code == 0
+    entry = json.loads((tmp_path / "pred.json").read_text())["predictions"][0]
+    assert entry["mask"] == str(tmp_path / "p.mask.png")
+    np.testing.assert_allclose(entry["to_light_camera"], masked["to_light_camera"], atol=1e-9)
+    code, io = run("predict", str(tmp_path / "p.png"), "--mask", str(tmp_path / "p.png"), "--model", model,
+                   "--out", str(tmp_path / "p.png"))
+    assert code == 2 and (tmp_path / "p.png").read_bytes() != b""   # an output equal to an input: refused
+
+
+def test_training_on_the_objects_alone_records_it_in_the_model(tmp_path, mi):
+    from relight.generator.run import generate
+    from relight.net.io import load_model_file
+    from relight.net.train import TrainConfig, train
+    data = tmp_path / "d"
+    generate(data, 4, seed=6, cfg=dataclasses.replace(CFG, res=32, object_masks=True), progress=False)
+    init = _alone_model(tmp_path / "init.safetensors", "keep")
+    cfg = TrainConfig(data_dir=str(data), epochs=1, batch_size=2, res=32, width=8, init=init, source="exr",
+                      target_frame="camera", surround="black", train_split="all", val_split="all")
+    train(cfg, str(tmp_path / "run"), progress=False)
+    assert load_model_file(str(tmp_path / "run" / "best.safetensors")).config.surround == "black"

@@ -122,6 +122,10 @@ def add_commands(sub) -> None:
                    help="camera tilt in degrees used to decode the light tilt (default: the model's own estimate "
                         "when it has a camera head, as photo has; else 45, the paper's)")
     at.add_model_option(p)
+    p.add_argument("--mask", action="append", default=None, metavar="MASK",
+                   help="an object mask per image, in the images' order (a PNG of the image's size, white "
+                        "where the objects are): everything outside it is set black first; repeatable. A model "
+                        "of the objects alone (trained with --surround black) needs one per image")
     p.add_argument("--out", required=True, help="predictions file to write (relight.predictions/v1)")
     at.add_mirror_option(p)
     p.set_defaults(func=cmd_predict)
@@ -222,14 +226,14 @@ def cmd_predict(args) -> int:
     from relight.net.io import named_file, resolve_model
     from relight.predictions import write_predictions
     model_file = resolve_model(args.model)
-    check_outputs([args.out], args.images + [model_file, named_file(args.model)])
+    check_outputs([args.out], args.images + (args.mask or []) + [model_file, named_file(args.model)])
     check_file_target(args.out)
     model = load_model(model_file, mirror_average=args.mirror_average)
     files = list_images(args.images)
     check_outputs([args.out], files)
     own_tilt = args.camera_tilt is None and getattr(model, "has_camera", False)
     tilt = None if own_tilt else (DEFAULT_CAMERA_TILT_DEG if args.camera_tilt is None else args.camera_tilt)
-    preds = predict_files(model, files, tilt)
+    preds = predict_files(model, files, tilt, masks=args.mask)
     grey = [p["id"] for p in preds if p.get("colour_reliable") is False]
     if grey:
         import sys
@@ -249,6 +253,8 @@ def cmd_predict(args) -> int:
     fields = ("id", "pan_deg", "tilt_deg", "rgb", "y", "cct_k", "duv", "kappa", "cone90_deg", "colour_reliable",
               "camera_tilt_deg", "to_light_camera", "ood", "ood_score")
     entries = [{k: p[k] for k in fields if k in p} | {"file": os.path.abspath(p["file"])} for p in preds]
+    for entry, mask in zip(entries, args.mask or []):
+        entry["mask"] = os.path.abspath(mask)
     meta = {"camera_tilt_deg": tilt} if tilt is not None else {"camera_tilt": "predicted per image"}
     write_predictions(args.out, entries, model=_model_label(args), inputs=files, **meta)
     print(f"wrote {args.out} ({len(entries)} predictions)")

@@ -47,7 +47,7 @@ import numpy as np
 import torch
 
 from relight.errors import DatasetError, TrainingError
-from relight.net.data import LightDataset, dataset_folders, flip_image, flip_y, folders_record
+from relight.net.data import LightDataset, dataset_folders, flip_image, flip_y, folders_record, model_dataset
 from relight.net.model import head_kappa
 from relight.net.uncertainty import direction_from_y, fit_temperature, uncertainty_summary, vmf_nll
 
@@ -188,8 +188,7 @@ def calibrate_kappa(model, data_dir, cfg: CalibrationConfig = CalibrationConfig(
     if not getattr(model, "has_kappa", False):
         raise TrainingError("the model has no kappa head (trained with --kappa-weight 0): nothing to calibrate")
     folders = dataset_folders(data_dir)
-    dataset = LightDataset(folders, cfg.split, model.config.res, cache=False,
-                           target_frame=model.config.target_frame)
+    dataset = model_dataset(model, folders, cfg.split, cache=False, target_frame=model.config.target_frame)
     if len(dataset) < MIN_IMAGES:
         raise DatasetError(f"{', '.join(folders)}: split {cfg.split!r} holds {len(dataset)} images; calibration needs "
                            f"at least {MIN_IMAGES}")
@@ -256,7 +255,7 @@ def calibrate_model_file(model_path: str | os.PathLike, data_dir, out_path: str 
         info["kappa_calibration"] = report | {"model": os.path.abspath(os.fspath(model_path))}
     if cfg.ood:
         from relight.net.ood import fit_ood
-        dataset = LightDataset(dataset_folders(data_dir), cfg.split, model.config.res, cache=False)
+        dataset = model_dataset(model, dataset_folders(data_dir), cfg.split, cache=False)
         model, report["ood"] = fit_ood(model, dataset.batch(range(len(dataset))))
         info["ood"] = report["ood"] | {"data_dir": folders_record(dataset_folders(data_dir)), "split": cfg.split}
     from relight.net.io import stored_float_dtype

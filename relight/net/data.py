@@ -19,7 +19,7 @@ from __future__ import annotations
 
 __all__ = [
     "SPLITS", "prepare_srgb8", "flip_y", "flip_image", "dataset_folders", "folders_record", "LightDataset",
-    "linear_at_res",
+    "linear_at_res", "mask_at_res", "square_at_res", "model_dataset",
 ]
 
 import copy
@@ -30,11 +30,11 @@ import torch
 from torch.utils.data import Dataset
 
 from relight import frames
+from relight.net.model import SURROUNDS   # noqa: F401 - what a LightDataset does outside the objects
 from relight.dataset import SPLIT_CHOICES, DatasetError, read_manifest, safe_join, split_records
 
 SPLITS = SPLIT_CHOICES   # one split or "all"
 SOURCES = ("image", "exr")   # what a LightDataset reads: the 8-bit PNG, or the linear EXR
-SURROUNDS = ("keep", "black")   # what it does with the pixels outside the objects (docs/photo.md, tenth round)
 
 
 def linear_at_res(path: str, res: int) -> np.ndarray:
@@ -294,3 +294,13 @@ class LightDataset(Dataset):
                 "tilt_deg": np.array([x["light"]["tilt_deg"] for x in r], dtype=np.float64),
                 "rgb": np.array([x["light"]["rgb"] for x in r], dtype=np.float64).reshape(-1, 3),
                 "camera_tilt_deg": np.array([x["camera"]["tilt_deg"] for x in r], dtype=np.float64)}
+
+
+def model_dataset(model, data_dir, split: str, **kwargs) -> LightDataset:
+    """The records of ``split`` of ``data_dir`` as ``model`` reads them: for a network of the
+    objects alone (``config.surround`` "black") the linear EXRs times their object masks,
+    unaugmented; else the 8-bit PNGs. ``kwargs`` go to :class:`LightDataset`."""
+    config = model.config
+    if getattr(config, "surround", "keep") != "keep":
+        kwargs = {"source": "exr", "surround": config.surround} | kwargs
+    return LightDataset(data_dir, split, int(config.res), **kwargs)

@@ -33,7 +33,7 @@ import torch
 
 from relight import frames, metrics
 from relight.dataset import DatasetError
-from relight.net.data import LightDataset
+from relight.net.data import LightDataset, model_dataset
 
 COLOUR_STATS = ("mean", "median", "trimean", "best25", "worst25")
 
@@ -210,7 +210,7 @@ def evaluate(model, data_dir: str | os.PathLike, out_dir: str | os.PathLike, spl
     Returns ``error_tables`` (nested dict of statistics, degrees) with ``n``.
     """
     data_dir, out_dir = os.fspath(data_dir), os.fspath(out_dir)
-    dataset = LightDataset(data_dir, split, model.config.res, cache=False)
+    dataset = model_dataset(model, data_dir, split, cache=False)
     if len(dataset) == 0:
         raise DatasetError(f"{data_dir}: no records in split {split!r} (try --split all)")
     if scheduler is None:

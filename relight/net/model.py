@@ -44,6 +44,11 @@ from torch.nn import functional as F
 
 from relight.frames import check_target_frame
 
+# What a network was trained to see around the objects: "keep", the whole image; "black", the
+# objects alone, everything outside an object mask black (``relight train --surround black``;
+# its images need a mask: ``relight predict --mask``). Files written before it: "keep".
+SURROUNDS = ("keep", "black")
+
 ARCH_NAME = "sid2-inception-small/v1"
 PAPER_ARCH_NAME = "sid2-inception-paper/v1"
 ARCHES = {"small": ARCH_NAME, "paper": PAPER_ARCH_NAME}   # NetConfig.arch -> name in model files
@@ -76,6 +81,8 @@ class NetConfig:
             light in the camera frame, the paper's encoding for a level camera); files
             written before it existed are ``"world"``. Decode through
             :func:`relight.net.evaluate.decode_outputs` (:func:`relight.frames.target_to_y`).
+        surround: what the network sees around the objects, a name of :data:`SURROUNDS`
+            (``"black"``: the objects alone, so every image it reads needs an object mask).
     """
     res: int = 128
     width: int = 32
@@ -88,6 +95,7 @@ class NetConfig:
     camera_head: bool = False
     ood_dims: int = 0
     target_frame: str = "world"
+    surround: str = "keep"
 
     def __post_init__(self):
         for name in ("res", "width", "embed", "head_hidden", "grid"):
@@ -104,6 +112,8 @@ class NetConfig:
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"NetConfig.{name} must be true or false, got {getattr(self, name)!r}")
         check_target_frame(self.target_frame)
+        if self.surround not in SURROUNDS:
+            raise ValueError(f"NetConfig.surround must be one of {', '.join(SURROUNDS)}, got {self.surround!r}")
 
     @classmethod
     def for_arch(cls, arch: str = "small", **kwargs) -> "NetConfig":

@@ -145,12 +145,15 @@ def score_photo_set(model, folder: str, names: tuple[str, ...] | None = None,
     true light, camera frame. ``camera_tilt_deg``: None = the model's own (camera head; else
     the paper's 45). ``surround``: everything outside the object (its ``NAME.mask.png``)
     changed first by :func:`replace_surround` in that way (``"black"``: the backdrop blacked
-    out), a diagnostic of what in the surroundings moves the answer.
+    out), a diagnostic of what in the surroundings moves the answer; a network of the objects
+    alone always reads them with everything outside the mask black.
     Returns per-image arrays ``id``, ``group`` (the object: the name before the light's
     number), ``direction_deg``, ``covered``, ``ood``, ``camera_tilt_deg``,
     ``to_light_camera`` and ``true_to_light_camera``."""
-    from relight.net.predict import predict_arrays, predict_files
+    from relight.net.predict import model_surround, predict_arrays, predict_files
     files, truth = read_photo_set(folder, names)
+    if surround is None and model_surround(model) == "black":   # a network of the objects alone
+        surround = "black"
     if surround is not None:
         preds = predict_arrays(model, _with_surround(files, surround), None if camera_tilt_deg is None else
                                [camera_tilt_deg] * len(files))
@@ -280,10 +283,10 @@ def score_dataset(model, data_dir: str, split: str = "all", limit: int | None = 
     ``world_direction_deg`` (Table 1's direction error: decoded with the true camera tilt),
     ``colour_deg``, ``covered``, ``ood``, ``camera_tilt_error_deg``, and the camera-frame
     directions ``to_light_camera`` (predicted) and ``true_to_light_camera``."""
-    from relight.net.data import LightDataset
+    from relight.net.data import model_dataset
     from relight.net.evaluate import decode_outputs, target_frame_of
     from relight.net.predict import _predict_inputs
-    ds = LightDataset(data_dir, split, int(model.config.res), cache=False)
+    ds = model_dataset(model, data_dir, split, cache=False)
     if limit is not None:
         ds.keep_first([min(limit, n) for n in ds.part_sizes()])
     truth = ds.truth()

@@ -22,6 +22,7 @@ import numpy as np
 import torch
 
 from relight import frames
+from relight.errors import ImageError
 from relight.net.data import prepare_srgb8
 from relight.net.evaluate import decode_outputs, extra_fields, paper_y, target_frame_of
 from relight.net.io import ModelFileError, load_model_file, resolve_model
@@ -32,7 +33,8 @@ ACHROMATIC_TOLERANCE = 2   # 8-bit sRGB code values between the channels of a gr
 
 __all__ = ["load_model", "predict_arrays", "predict_files", "list_images", "ModelFileError",
            "DEFAULT_CAMERA_TILT_DEG", "is_achromatic",
-           "IMAGE_EXTENSIONS", "ACHROMATIC_TOLERANCE", "read_input", "image_ids"]
+           "IMAGE_EXTENSIONS", "ACHROMATIC_TOLERANCE", "read_input", "image_ids", "model_surround",
+           "objects_alone"]
 
 
 def is_achromatic(srgb8: np.ndarray, tolerance: int = ACHROMATIC_TOLERANCE) -> bool:
@@ -147,6 +149,27 @@ def _predict_inputs(model, inputs: list[torch.Tensor], camera_tilt_deg, batch_si
     return out
 
 
+def model_surround(model) -> str:
+    """What ``model`` was trained to see around the objects (:data:`relight.net.model.SURROUNDS`):
+    ``"black"`` for a network of the objects alone, whose images need an object mask."""
+    return getattr(getattr(model, "config", None), "surround", "keep")
+
+
+def objects_alone(image: np.ndarray, mask: np.ndarray, linear: bool = True) -> np.ndarray:
+    """``image`` (H, W, 3) with everything outside ``mask`` (H, W: coverage in [0, 1], or
+    bool) black: the linear pixels times the mask (sRGB ones, ``linear=False``, decoded
+    first and encoded again, 8-bit codes in and out)."""
+    from relight.colour import srgb_decode, srgb_encode
+    m = np.clip(np.asarray(mask, np.float64), 0.0, 1.0)
+    x = np.asarray(image)
+    if m.shape != x.shape[:2]:
+        raise ImageError(f"mask of {m.shape[1]}x{m.shape[0]} pixels for an image of {x.shape[1]}x{x.shape[0]}")
+    if linear:
+        return (x[..., :3] * m[..., None]).astype(np.float32)
+    lin = srgb_decode(x[..., :3].astype(np.float64) / 255.0) * m[..., None]
+    return np.round(srgb_encode(lin) * 255.0).astype(np.uint8)
+
+
 def predict_arrays(model, images_linear: list[np.ndarray], camera_tilt_deg: list[float] | None) -> list[dict]:
     """Predict light of linear images.
 
@@ -196,10 +219,18 @@ def read_input(path: str, res: int) -> tuple[torch.Tensor, str]:
     return x, note
 
 
-def _read_input(path: str, res: int) -> tuple[torch.Tensor, str, bool]:
-    """:func:`read_input` and whether the image is grayscale (:func:`is_achromatic`)."""
-    from relight.imageio import read_srgb8
+def _read_input(path: str, res: int, mask: str | None = None) -> tuple[torch.Tensor, str, bool]:
+    """:func:`read_input` and whether the image is grayscale (:func:`is_achromatic`); with
+    ``mask`` (an image file: white where the objects are), the objects alone
+    (:func:`objects_alone`)."""
+    from relight.imageio import read_mask, read_srgb8
     srgb8, note = read_srgb8(path)
+    if mask is not None:
+        try:
+            srgb8 = objects_alone(srgb8, read_mask(mask), linear=False)
+        except ImageError as exc:
+            raise ImageError(f"{mask}: {exc}") from None
+        note += ", outside its mask black"
     return prepare_srgb8(srgb8, res), note, is_achromatic(srgb8)
 
 
@@ -244,7 +275,8 @@ def image_ids(files: list[str]) -> list[str]:
     return out
 
 
-def predict_files(model, files: list[str], camera_tilt_deg: float | None = None) -> list[dict]:
+def predict_files(model, files: list[str], camera_tilt_deg: float | None = None,
+                  masks: list[str] | None = None) -> list[dict]:
     """Predictions for image files; each dict also has ``id``, ``file`` and ``assumed``
     (how its pixels were interpreted), and ``colour_reliable`` = False for a grayscale
     image (:func:`is_achromatic`).
@@ -254,6 +286,9 @@ def predict_files(model, files: list[str], camera_tilt_deg: float | None = None)
         files: image paths (PNG of any mode and depth, JPEG: sRGB; EXR: linear).
         camera_tilt_deg: the camera tilt assumed for every image, degrees; None: the
             model's own estimate (camera head), else the paper's 45 degrees.
+        masks: one object mask file per image (white where the objects are; the image's
+            size), or None: everything outside it is set black first. A model of the
+            objects alone (:func:`model_surround` "black") needs them.
 
     Returns:
         One dict per file, in order, with the fields of :func:`predict_arrays`.
@@ -267,9 +302,14 @@ def predict_files(model, files: list[str], camera_tilt_deg: float | None = None)
     [('room', True, False)]
     >>> tmp.cleanup()
     """
+    if masks is not None and len(masks) != len(files):
+        raise ImageError(f"{len(masks)} masks for {len(files)} images: give one mask per image, in order")
+    if masks is None and model_surround(model) == "black":
+        raise ImageError("this model reads the objects alone (trained with --surround black): give each "
+                         "image's object mask (--mask, white where the objects are)")
     inputs, assumed, achromatic = [], [], []
-    for f in files:
-        x, how, grey = _read_input(f, model.config.res)
+    for k, f in enumerate(files):
+        x, how, grey = _read_input(f, model.config.res, None if masks is None else masks[k])
         inputs.append(x)
         assumed.append(how)
         achromatic.append(grey)

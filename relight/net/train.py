@@ -205,13 +205,15 @@ def net_config(cfg: TrainConfig, saved: dict | None = None) -> NetConfig:
     if saved is None:
         return NetConfig.for_arch(cfg.arch, res=cfg.res, width=cfg.width,
                                   kappa_head=cfg.loss_weights.kappa > 0, kappa_detach=cfg.kappa_detach,
-                                  camera_head=cfg.camera_weight > 0, target_frame=cfg.target_frame)
+                                  camera_head=cfg.camera_weight > 0, target_frame=cfg.target_frame,
+                                  surround=cfg.surround)
     weights = saved.get("loss_weights") or {}
     return NetConfig.for_arch(saved.get("arch", "small"), res=cfg.res, width=cfg.width,
                               kappa_head=float(weights.get("kappa", 0.0)) > 0,
                               kappa_detach=bool(saved.get("kappa_detach", True)),
                               camera_head=float(saved.get("camera_weight", 0.0)) > 0,
-                              target_frame=saved.get("target_frame", "world"))
+                              target_frame=saved.get("target_frame", "world"),
+                              surround=saved.get("surround", "keep"))
 
 
 def _camera_tilts(dataset: LightDataset, index) -> torch.Tensor:
@@ -439,6 +441,8 @@ def _restore(cfg: TrainConfig, out_dir: str, resume: bool, ddp, writer: bool) ->
             init_model = with_camera_head(init_model)
         if init_model.config.target_frame != cfg.target_frame:   # its outputs learn the other frame's target
             init_model = with_heads(init_model, target_frame=cfg.target_frame)
+        if init_model.config.surround != cfg.surround:   # it learns to read what this run shows it
+            init_model = with_heads(init_model, surround=cfg.surround)
     from relight.net.augment import AUGMENTS
     train_set = LightDataset(cfg.data_dir, cfg.train_split, cfg.res, flip=cfg.flip, seed=cfg.seed,
                              image_key=cfg.image_key, source=cfg.source, target_frame=cfg.target_frame,
