@@ -236,6 +236,9 @@ def evaluate_psm(rows: list, qa_dir: str | None, folder: str = PSM) -> None:
                      _angle_deg(probes.chrome_light_direction(read_probe_image(path)[0], mask), truth), path))
 
 
+RADIUS_BINS_PX = ((10.0, 15.0), (15.0, 20.0), (20.0, 45.0))   # the team's renders: radius 15-20 px
+
+
 def png_floor(folder: str) -> None:
     """What an 8-bit file leaves of the light's position (Cycles, circle exact): the
     light's pixels are the connected region of the EXR, at the PNG's exposure, that the
@@ -247,10 +250,12 @@ def png_floor(folder: str) -> None:
     from relight.probe import geometry as geom
     from relight.probe.detect import read_probe_image
     errs: dict = {"EXR intensity centroid": [], "clipped-pixel centroid (8-bit)": []}
+    radii = []
     for scene_path in sorted(glob.glob(os.path.join(folder, "probe*.json"))):
         with open(scene_path) as f:
             d = json.load(f)
         t = d["truth"]
+        radii.append(float(t["chrome_circle"][2]))
         exr = read_probe_image(scene_path[:-5] + ".cycles.exr")[0]
         cam = geom.Camera.from_fov(exr.shape[1], exr.shape[0], t["fov_deg"])
         sphere = geom.sphere_from_circle(cam, *t["chrome_circle"])
@@ -263,9 +268,37 @@ def png_floor(folder: str) -> None:
             py = np.array([np.average(ys + 0.5, weights=w) + y0])
             hit = geom.surface(cam, sphere, px, py)
             errs[name].append(_angle_deg(hit["reflect"][0], t["to_light_camera"]) if hit["hit"][0] else 180.0)
+    radii = np.array(radii)
     for name, e in errs.items():
+        e = np.array(e)
         print(f"8-bit floor, {name:<32} n {len(e)} median {np.median(e):.2f} p90 {np.percentile(e, 90):.2f} "
               f"max {np.max(e):.2f}")
+        for lo, hi in RADIUS_BINS_PX:   # the sphere's size sets what a pixel of position costs
+            sel = e[(radii >= lo) & (radii < hi)]
+            if len(sel):
+                print(f"    chrome radius {lo:g}-{hi:g} px: n {len(sel)} median {np.median(sel):.2f} "
+                      f"max {np.max(sel):.2f}")
+
+
+def chrome_radii(folder: str) -> dict:
+    """Each scene file's chrome sphere radius in pixels (its truth), by scene name (``probe007``)."""
+    out = {}
+    for scene_path in glob.glob(os.path.join(folder, "probe*.json")):
+        with open(scene_path) as f:
+            out[os.path.basename(scene_path)[:-5]] = float(json.load(f)["truth"]["chrome_circle"][2])
+    return out
+
+
+def report_by_radius(rows: list, radii: dict) -> None:
+    """The set's rows again by the chrome sphere's radius (:data:`RADIUS_BINS_PX`)."""
+    print(f"
+by chrome radius (px; the team's Cycles renders: 15-20)")
+    for name in dict.fromkeys(r[0] for r in rows):
+        for lo, hi in RADIUS_BINS_PX:
+            errs = [e for n, _, e, f in rows if n == name and lo <= radii.get(f.split(".")[0], -1.0) < hi]
+            if errs:
+                print(f"{name:<44} {f'{lo:g}-{hi:g}':>6} {len(errs):>3} {np.median(errs):7.2f} "
+                      f"{np.percentile(errs, 90):7.2f} {np.max(errs):7.2f}")
 
 
 def report(rows: list, detect: list, worst: int = 0) -> None:
@@ -338,6 +371,8 @@ def main() -> None:
         print(f"psm_spheres not found at {os.path.normpath(args.psm)}; real-photo part skipped")
     print(f"\nsphere procedure benchmark: set {args.set}")
     report(rows, detect, args.worst)
+    if os.path.isdir(args.set):
+        report_by_radius(rows, chrome_radii(args.set))
 
 
 if __name__ == "__main__":

@@ -38,7 +38,7 @@ from relight.errors import DiskFullError, OutputError, RelightError
 TEMP_MARK = ".relight-tmp-"
 LOCK_NAME = ".relight.lock"
 # Files and folders a relight dataset owns (nothing else may write them).
-DATASET_OWNED = ("manifest.jsonl", "dataset.json", "images", "exr", "scenes", LOCK_NAME)
+DATASET_OWNED = ("manifest.jsonl", "dataset.json", "images", "exr", "scenes", "masks", LOCK_NAME)
 # Temporary names of this module, and the older ``NAME.tmpPID[.ext]`` / ``NAME.tmp`` forms.
 _TEMP_RE = re.compile(r"\.relight-tmp-(\d+)-[0-9a-f]+|\.tmp(\d*)(?:\.[A-Za-z0-9]+)?$")
 
@@ -115,7 +115,7 @@ def check_outputs(outputs, inputs=(), replaces_folder: bool = False) -> None:
 
     * an output that resolves to an input is refused;
     * an output that lies in a part of an input dataset folder that the dataset owns
-      (its manifest, card, images/, exr/, scenes/) is refused;
+      (its manifest, card, images/, exr/, scenes/, masks/) is refused;
     * an output folder that holds an input is refused: a command writes its folder's
       files by name (``train``'s ``best.safetensors``, ``evaluate``'s reports, a
       dataset's images), so an input kept there could be replaced (``train --out RUN

@@ -199,6 +199,7 @@ OUTPUT_IS_INPUT = [
     ["predict", "{D}/images", "--out", "{D}/images/000001.png"],
     ["evaluate", "--data", "{D}", "--out", "{D}/images"],
     ["evaluate", "--data", "{D}", "--out", "{D}/manifest.jsonl"],
+    ["evaluate", "--data", "{D}", "--out", "{D}/masks"],
     ["train", "--data", "{D}", "--out", "{D}/scenes", "--res", "16"],
     ["train", "--data", "{D}", "--out", "{D}"],
     ["compare", "{preds}", "--data", "{D}", "--out", "{D}"],
