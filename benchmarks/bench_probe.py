@@ -291,8 +291,7 @@ def chrome_radii(folder: str) -> dict:
 
 def report_by_radius(rows: list, radii: dict) -> None:
     """The set's rows again by the chrome sphere's radius (:data:`RADIUS_BINS_PX`)."""
-    print(f"
-by chrome radius (px; the team's Cycles renders: 15-20)")
+    print("\nby chrome radius (px; the team's Cycles renders: 15-20)")
     for name in dict.fromkeys(r[0] for r in rows):
         for lo, hi in RADIUS_BINS_PX:
             errs = [e for n, _, e, f in rows if n == name and lo <= radii.get(f.split(".")[0], -1.0) < hi]

@@ -228,6 +228,28 @@ def test_a_bright_surface_touching_a_small_highlight_does_not_pull_it():
     assert _angle(found.to_light, light) < DIR_TOL_DEG
 
 
+@pytest.mark.parametrize("inside_px, clip", [(1.4, True), (1.0, False), (1.4, False)])
+def test_a_highlight_by_the_rim_keeps_its_pixels_in_the_rim_band(inside_px, clip):
+    # a light behind the sphere: its highlight 1-1.4 px inside the outline, where the search
+    # leaves out the rim band (pixels within 1 px of the outline mix with what lies beyond);
+    # the light's core continues there, and without those pixels the highlight moved inward
+    # by 0.3-0.56 px (5-10 degrees on this 18 px sphere)
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 60.0, 5.0)
+    cx, cy = cam.project(sphere.c)
+    rim = next(d for d in np.arange(0.0, 30.0, 0.01)     # the outline along (0.3, -1) from the centre
+               if not pg.surface(cam, sphere, np.array([cx + 0.3 * d]), np.array([cy - d]))["hit"][0])
+    d = rim - inside_px
+    light = pg.surface(cam, sphere, np.array([cx + 0.3 * d]), np.array([cy - d]))["reflect"][0]
+    spot, _ = pg.predict_highlight(cam, sphere, light)
+    img = _render(cam, sphere, light, radiance=0.0, clip=False)[..., 0]
+    img = img + _blob(*spot, 0.5, (8.0 if clip else 2.0) * 2 * math.pi * 0.25)   # clipped: 8x the clip level
+    img = np.repeat(img[..., None], 3, -1)
+    found = pg.locate_highlight(_quantise(np.clip(img, 0, 1)) if clip else img, cam, sphere,
+                                clip_level=1.0 if clip else None)
+    assert math.dist(found.pixel, spot) < 0.25
+
+
 def test_a_light_beside_clipped_surroundings_is_still_located():
     # the light's small clipped core sits beside a clipped arc (a lamp's shade, a bright
     # window frame) joined to it by bright pixels: the level around the core is the clip

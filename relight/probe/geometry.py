@@ -491,6 +491,15 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
         # surroundings (the 90th percentile of a ring just outside the window: a lit
         # floor's reflection beside a small clipped highlight, or touching it, must not
         # pull it)
+        # the rim band (pixels on the sphere within RIM_EXCLUDE_PX of its outline) is left out
+        # of the search, as its pixels mix the sphere with what lies beyond; but where the
+        # chosen core runs into it at the core's own brightness, those pixels are the light
+        # (a light behind the sphere puts its highlight there), and leaving them out moves
+        # the highlight inward by up to a pixel: several degrees near the rim
+        rim_band = s["hit"] & ~usable & (s["cos_view"] > 0)
+        if mask is not None:
+            rim_band &= np.asarray(mask, bool)[y0:y1, x0:x1]
+        best_core = _core_into_rim(crop, best_core, rim_band)
         cy_, cx_ = np.nonzero(best_core)
         start = (float(cx_.mean()) + 0.5, float(cy_.mean()) + 0.5)
         radius = math.sqrt(best_core.sum() / math.pi) + WINDOW_MARGIN_PX
@@ -501,7 +510,13 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
         # only the light's own pixels count: those reached from its core by steps
         # downhill (its blur falls off monotonically; a lit surface's reflection beside
         # it, or another candidate, rises again)
-        own = _downhill_from(crop, best_core, usable & ~((cores > 0) & ~best_core), int(math.ceil(radius)) + 2)
+        # in a linear image (nothing clips) the light's blur continues into the rim band too,
+        # far above anything the outline's mixing can give there (half the core's peak); in a
+        # clipped one a mixed rim pixel can reach that level, so only the core itself goes there
+        clips = clip_level is not None and peak >= 0.995 * clip_level
+        rim_tail = rim_band & (crop >= HIGHLIGHT_FRACTION * float(crop[best_core].max())) if not clips else False
+        own = _downhill_from(crop, best_core, (usable | rim_tail) & ~((cores > 0) & ~best_core),
+                             int(math.ceil(radius)) + 2)
         px, py = _soft_window_centroid(crop, own, start, level, radius)
         px, py = px + x0, py + y0
     at_centroid = surface(camera, sphere, np.array([px]), np.array([py]))
@@ -531,6 +546,19 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     quality["error_budget_deg"] = {k: round(v, 3) for k, v in budget.items()}
     quality["uncertainty_deg"] = budget["total_deg"]
     return Highlight(to_light, (px, py), quality)
+
+
+def _core_into_rim(crop: np.ndarray, core: np.ndarray, rim_band: np.ndarray) -> np.ndarray:
+    """``core`` grown through connected ``rim_band`` pixels at least :data:`TIE_FRACTION` of
+    the core's brightest pixel (the light's core continued where the search does not look)."""
+    level = TIE_FRACTION * float(crop[core].max())
+    grown = np.asarray(core, bool).copy()
+    square = np.ones((3, 3), bool)
+    while True:
+        new = ndimage.binary_dilation(grown, square) & rim_band & ~grown & (crop >= level)
+        if not new.any():
+            return grown
+        grown |= new
 
 
 def _downhill_from(crop: np.ndarray, seed: np.ndarray, allowed: np.ndarray, steps: int) -> np.ndarray:
