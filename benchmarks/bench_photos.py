@@ -69,6 +69,13 @@ def _constant_guess(truth: np.ndarray) -> dict:
             "cone90_coverage": float("nan"), "ood_share": 0.0}
 
 
+def _has_masks(folder: str) -> bool:
+    """Whether a dataset's records name object masks (generated with ``object_masks``)."""
+    from relight.dataset import read_manifest
+    records = read_manifest(folder)
+    return bool(records) and all(isinstance(r.get("mask"), str) for r in records)
+
+
 def _count(folder: str) -> int:
     """Records in a dataset folder's manifest (0 where there is none yet)."""
     path = os.path.join(folder, "manifest.jsonl")
@@ -151,7 +158,7 @@ def main(argv=None) -> int:
     from relight.errors import RelightError
     from relight.net import photos
     from relight.net.io import SHIPPED_NAMES, shipped_model_path
-    from relight.net.predict import load_model
+    from relight.net.predict import load_model, model_surround
     try:
         names = args.model or [n for n in SHIPPED_NAMES if os.path.isfile(shipped_model_path(n))] or [None]
         models = [(m or "shipped", load_model(m)) for m in names]
@@ -203,6 +210,9 @@ def main(argv=None) -> int:
                 if kind == "photo":
                     s = photos.summary(photos.score_photo_set(model, folder, names, args.camera_tilt, surround))
                     print(_row(f"  {_label(name)}", s))
+                elif model_surround(model) != "keep" and not _has_masks(folder):
+                    print(f"  {_label(name):<42}  skipped: it reads the objects alone, and this set has no object masks")
+                    continue
                 else:
                     s = photos.summary(photos.score_dataset(model, folder, limit=args.n))
                     print(_row(f"  {_label(name)}", s, head_keys))

@@ -245,3 +245,25 @@ def test_training_on_the_objects_alone_records_it_in_the_model(tmp_path, mi):
                       target_frame="camera", surround="black", train_split="all", val_split="all")
     train(cfg, str(tmp_path / "run"), progress=False)
     assert load_model_file(str(tmp_path / "run" / "best.safetensors")).config.surround == "black"
+
+
+def test_bench_photos_scores_a_model_of_the_objects_alone_only_where_masks_are(tmp_path, mi, capsys):
+    import importlib.util
+    import os
+
+    from relight.generator.run import generate
+    repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    spec = importlib.util.spec_from_file_location("bench_photos", os.path.join(repo, "benchmarks", "bench_photos.py"))
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    plain, masked = tmp_path / "plain", tmp_path / "masked"
+    generate(plain, 2, seed=7, cfg=dataclasses.replace(CFG, res=32), progress=False)
+    generate(masked, 2, seed=7, cfg=dataclasses.replace(CFG, res=32, object_masks=True), progress=False)
+    model = _alone_model(tmp_path / "alone.safetensors")
+    assert bench.main(["--no-devset", "--photos", str(tmp_path / "none"), "--model", model,
+                       "--data", str(plain), "--data", str(masked)]) == 0
+    out = capsys.readouterr().out
+    after_plain = out[out.index(str(plain)):out.index(str(masked))]
+    assert "skipped: it reads the objects alone" in after_plain
+    after_masked = out[out.index(str(masked)):].splitlines()
+    assert any(ln.startswith("  alone.safetensors") and "skipped" not in ln for ln in after_masked)
