@@ -30,7 +30,7 @@ import torch
 from torch.utils.data import Dataset
 
 from relight import frames
-from relight.net.model import SURROUNDS   # noqa: F401 - what a LightDataset does outside the objects
+from relight.net.model import NET_SURROUNDS
 from relight.dataset import SPLIT_CHOICES, DatasetError, read_manifest, safe_join, split_records
 
 SPLITS = SPLIT_CHOICES   # one split or "all"
@@ -162,8 +162,8 @@ class LightDataset(Dataset):
             raise ValueError(f"source must be one of {', '.join(SOURCES)}, got {source!r}")
         self.source = source         # "image": the 8-bit PNG; "exr": the linear EXR through ``augment``
         self.augment = augment       # a relight.net.augment.PipelineAugment (source "exr"), or None
-        if surround not in SURROUNDS or (surround != "keep" and source != "exr"):
-            raise ValueError(f"surround must be one of {', '.join(SURROUNDS)} (not keep: with source exr), "
+        if surround not in NET_SURROUNDS or (surround != "keep" and source != "exr"):
+            raise ValueError(f"surround must be one of {', '.join(NET_SURROUNDS)} (not keep: with source exr), "
                              f"got {surround!r} with source {source!r}")
         self.surround = surround     # "black": the linear image times its object mask (the object alone)
         frames.check_target_frame(target_frame)

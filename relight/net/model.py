@@ -29,7 +29,7 @@ to predict the direction error without changing what the paper's terms train.
 from __future__ import annotations
 
 __all__ = [
-    "ARCH_NAME", "PAPER_ARCH_NAME", "ARCHES", "COLOUR_FLOOR", "KAPPA_INIT", "LOG_KAPPA_RANGE", "PAPER_SIZES",
+    "ARCH_NAME", "PAPER_ARCH_NAME", "ARCHES", "NET_SURROUNDS", "COLOUR_FLOOR", "KAPPA_INIT", "LOG_KAPPA_RANGE", "PAPER_SIZES",
     "NetConfig", "ConvBN", "SplitInception", "FactorisedInception7", "ExpandedInception", "GridReduction",
     "PaperEncoder", "LightNet", "MirrorAveraged", "head_kappa", "count_parameters", "flops_per_image",
     "camera_tilt_deg",
@@ -47,7 +47,7 @@ from relight.frames import check_target_frame
 # What a network was trained to see around the objects: "keep", the whole image; "black", the
 # objects alone, everything outside an object mask black (``relight train --surround black``;
 # its images need a mask: ``relight predict --mask``). Files written before it: "keep".
-SURROUNDS = ("keep", "black")
+NET_SURROUNDS = ("keep", "black")
 
 ARCH_NAME = "sid2-inception-small/v1"
 PAPER_ARCH_NAME = "sid2-inception-paper/v1"
@@ -81,7 +81,7 @@ class NetConfig:
             light in the camera frame, the paper's encoding for a level camera); files
             written before it existed are ``"world"``. Decode through
             :func:`relight.net.evaluate.decode_outputs` (:func:`relight.frames.target_to_y`).
-        surround: what the network sees around the objects, a name of :data:`SURROUNDS`
+        surround: what the network sees around the objects, a name of :data:`NET_SURROUNDS`
             (``"black"``: the objects alone, so every image it reads needs an object mask).
     """
     res: int = 128
@@ -112,8 +112,8 @@ class NetConfig:
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"NetConfig.{name} must be true or false, got {getattr(self, name)!r}")
         check_target_frame(self.target_frame)
-        if self.surround not in SURROUNDS:
-            raise ValueError(f"NetConfig.surround must be one of {', '.join(SURROUNDS)}, got {self.surround!r}")
+        if self.surround not in NET_SURROUNDS:
+            raise ValueError(f"NetConfig.surround must be one of {', '.join(NET_SURROUNDS)}, got {self.surround!r}")
 
     @classmethod
     def for_arch(cls, arch: str = "small", **kwargs) -> "NetConfig":
