@@ -148,6 +148,9 @@ def main(argv=None) -> int:
                          "at a time (black, as --backdrop-off, their mean colour, upside down, each row its "
                          "mean, that profile upside down; relight.net.photos.replace_surround): what in them "
                          "moves each model")
+    ap.add_argument("--linear", action="store_true",
+                    help="also score psm_objects and the gray ball with their 8-bit codes read as linear values "
+                         "(their camera's response, measured on the gray ball: the 'camera response' line)")
     ap.add_argument("--data", action="append", default=[], metavar="DIR",
                     help="also score this dataset folder (relight generate output; repeatable)")
     ap.add_argument("--json", default=None, help="also write every summary to this JSON file")
@@ -167,35 +170,40 @@ def main(argv=None) -> int:
         objects = os.path.join(shared, "psm_objects")
         spheres = os.path.join(shared, "psm_spheres")
         if os.path.isdir(objects):
-            sets.append(("psm_objects (60 photos)", "photo", objects, None, None))
+            sets.append(("psm_objects (60 photos)", "photo", objects, None, None, False))
+            if args.linear:
+                sets.append(("psm_objects, codes read as linear", "photo", objects, None, None, True))
             if args.backdrop_off or args.surround:
-                sets.append(("psm_objects, backdrop blacked out (masks)", "photo", objects, None, "black"))
+                sets.append(("psm_objects, backdrop blacked out (masks)", "photo", objects, None, "black", False))
             if args.surround:
-                sets += [(f"psm_objects, surroundings {how}", "photo", objects, None, how)
+                sets += [(f"psm_objects, surroundings {how}", "photo", objects, None, how, False)
                          for how in photos.SURROUNDS if how != "black"]
         else:
             print(f"psm_objects: skipped ({objects} not present)")
         if os.path.isdir(spheres):
-            sets.append(("psm_spheres gray ball", "photo", spheres, ("gray",), None))
+            sets.append(("psm_spheres gray ball", "photo", spheres, ("gray",), None, False))
+            if args.linear:
+                sets.append(("psm_spheres gray ball, codes read as linear", "photo", spheres, ("gray",), None, True))
             if args.backdrop_off:
-                sets.append(("psm_spheres gray ball, backdrop blacked out (masks)", "photo", spheres, ("gray",), "black"))
-            sets.append(("psm_spheres chrome ball", "photo", spheres, ("chrome",), None))
+                sets.append(("psm_spheres gray ball, backdrop blacked out (masks)", "photo", spheres, ("gray",),
+                             "black", False))
+            sets.append(("psm_spheres chrome ball", "photo", spheres, ("chrome",), None, False))
             print(_camera_response(spheres))
         else:
             print(f"psm_spheres: skipped ({spheres} not present)")
         for folder in args.data:
             if os.path.isfile(os.path.join(folder, "manifest.jsonl")):
-                sets.append((f"{folder}", "data", folder, None, None))
+                sets.append((f"{folder}", "data", folder, None, None, False))
             else:
                 print(f"{folder}: skipped (no manifest.jsonl: not a relight dataset)")
         if not args.no_devset:
             mitsuba, cycles, agx = ensure_devset(args.devset, args.n)
-            sets.append((f"dev set, Mitsuba ({args.n} default rooms)", "data", mitsuba, None, None))
+            sets.append((f"dev set, Mitsuba ({args.n} default rooms)", "data", mitsuba, None, None, False))
             if cycles:
-                sets.append((f"dev set, Cycles (the same {args.n} scenes)", "data", cycles, None, None))
-                sets.append((f"dev set, Cycles + Blender's AgX view (the same {args.n})", "data", agx, None, None))
+                sets.append((f"dev set, Cycles (the same {args.n} scenes)", "data", cycles, None, None, False))
+                sets.append((f"dev set, Cycles + Blender's AgX view (the same {args.n})", "data", agx, None, None, False))
         results = {}
-        for label, kind, folder, names, surround in sets:
+        for label, kind, folder, names, surround, linear in sets:
             print(f"\n{label}")
             if kind == "photo":
                 _, truth = photos.read_photo_set(folder, names)
@@ -208,7 +216,7 @@ def main(argv=None) -> int:
                       "    follows x y  in-image  slant |err| bias")
             for name, model in models:
                 if kind == "photo":
-                    s = photos.summary(photos.score_photo_set(model, folder, names, args.camera_tilt, surround))
+                    s = photos.summary(photos.score_photo_set(model, folder, names, args.camera_tilt, surround, linear))
                     print(_row(f"  {_label(name)}", s))
                 elif model_surround(model) != "keep" and not _has_masks(folder):
                     print(f"  {_label(name):<42}  skipped: it reads the objects alone, and this set has no object masks")

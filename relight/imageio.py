@@ -231,11 +231,15 @@ def read_image(path: str | os.PathLike) -> tuple[np.ndarray, str]:
     return colour.srgb_decode(pixels.astype(np.float64)).astype(np.float32), note + ", decoded to linear"
 
 
-def read_srgb8(path: str | os.PathLike) -> tuple[np.ndarray, str]:
+def read_srgb8(path: str | os.PathLike, linear: bool = False) -> tuple[np.ndarray, str]:
     """Read any supported image as 8-bit sRGB ``(H, W, 3)`` uint8 (the network's input
     encoding): sRGB files are rounded to 8 bits, linear files (EXR) encoded with
-    :func:`to_srgb8`. Returns ``(pixels, note)``."""
+    :func:`to_srgb8`; with ``linear``, a PNG/JPEG's codes are taken as linear values (a
+    camera whose output is proportional to the light) and encoded too. Returns
+    ``(pixels, note)``."""
     pixels, encoding, note = load_image(path)
     if encoding == "linear":
         return to_srgb8(pixels), note + " -> 8-bit sRGB"
+    if linear:
+        return to_srgb8(pixels), note + ", codes read as linear -> 8-bit sRGB"
     return np.round(np.clip(pixels, 0.0, 1.0) * 255.0).astype(np.uint8), note

@@ -267,3 +267,50 @@ def test_bench_photos_scores_a_model_of_the_objects_alone_only_where_masks_are(t
     assert "skipped: it reads the objects alone" in after_plain
     after_masked = out[out.index(str(masked)):].splitlines()
     assert any(ln.startswith("  alone.safetensors") and "skipped" not in ln for ln in after_masked)
+
+
+def test_predict_linear_reads_8bit_codes_as_linear_values(tmp_path, capsys):
+    """``--linear``: a PNG's codes are the light's values (a camera proportional to the light);
+    the answer is the one for the same values given as a linear array."""
+    from PIL import Image
+
+    from relight.cli import main
+    from relight.imageio import read_srgb8, to_srgb8
+    from relight.net.predict import load_model, predict_arrays, predict_files
+    rng = np.random.default_rng(8)
+    codes = rng.integers(0, 256, size=(24, 30, 3)).astype(np.uint8)
+    Image.fromarray(codes).save(tmp_path / "lin.png")
+    srgb8, note = read_srgb8(tmp_path / "lin.png", linear=True)
+    assert np.array_equal(srgb8, to_srgb8(codes / 255.0)) and "read as linear" in note
+    assert np.array_equal(read_srgb8(tmp_path / "lin.png")[0], codes)          # default: sRGB, as stored
+    model = load_model(_alone_model(tmp_path / "keep.safetensors", "keep"))
+    got = predict_files(model, [str(tmp_path / "lin.png")], 20.0, linear=True)[0]
+    ref = predict_arrays(model, [codes / 255.0], [20.0])[0]
+    np.testing.assert_allclose(got["to_light_camera"], ref["to_light_camera"], atol=1e-9)
+    plain = predict_files(model, [str(tmp_path / "lin.png")], 20.0)[0]
+    assert not np.allclose(plain["to_light_camera"], ref["to_light_camera"], atol=1e-4)   # the reading matters
+    out = tmp_path / "p.json"
+    assert main(["predict", str(tmp_path / "lin.png"), "--linear", "--model", str(tmp_path / "keep.safetensors"),
+                 "--camera-tilt", "20", "--out", str(out)]) == 0
+    doc = json.loads(out.read_text())
+    assert doc["pixel_codes"] == "linear"
+    np.testing.assert_allclose(doc["predictions"][0]["to_light_camera"], ref["to_light_camera"], atol=1e-9)
+
+
+def test_photo_set_read_as_linear(tmp_path):
+    """``score_photo_set(linear=True)``: the photos' codes as linear values, with or without
+    a surround change, the same answer as the arrays given directly."""
+    from PIL import Image
+
+    from relight.net.photos import score_photo_set
+    from relight.net.predict import load_model, predict_arrays
+    yy, xx = np.mgrid[:32, :40]
+    mask = (yy - 16) ** 2 + (xx - 20) ** 2 < 10 ** 2
+    (tmp_path / "lights.txt").write_text("1\n0 0 1\n")
+    photo = np.where(mask[..., None], (60 + 150 * xx / 40.0)[..., None] * np.ones(3), 25).astype(np.uint8)
+    Image.fromarray(photo).save(tmp_path / "ball.0.png")
+    Image.fromarray((mask * 255).astype(np.uint8)).save(tmp_path / "ball.mask.png")
+    model = load_model(_alone_model(tmp_path / "alone.safetensors"))       # reads through the mask
+    got = score_photo_set(model, str(tmp_path), camera_tilt_deg=10.0, linear=True)
+    ref = predict_arrays(model, [photo / 255.0 * mask[..., None]], [10.0])[0]
+    np.testing.assert_allclose(got["to_light_camera"][0], ref["to_light_camera"], atol=1e-9)

@@ -126,6 +126,9 @@ def add_commands(sub) -> None:
                    help="an object mask per image, in the images' order (a PNG of the image's size, white "
                         "where the objects are): everything outside it is set black first; repeatable. A model "
                         "of the objects alone (trained with --surround black) needs one per image")
+    p.add_argument("--linear", action="store_true",
+                   help="PNG/JPEG codes are linear values (a camera whose output is proportional to the light: "
+                        "measurement and machine-vision cameras); default sRGB. EXR is linear either way")
     p.add_argument("--out", required=True, help="predictions file to write (relight.predictions/v1)")
     at.add_mirror_option(p)
     p.set_defaults(func=cmd_predict)
@@ -233,7 +236,7 @@ def cmd_predict(args) -> int:
     check_outputs([args.out], files)
     own_tilt = args.camera_tilt is None and getattr(model, "has_camera", False)
     tilt = None if own_tilt else (DEFAULT_CAMERA_TILT_DEG if args.camera_tilt is None else args.camera_tilt)
-    preds = predict_files(model, files, tilt, masks=args.mask)
+    preds = predict_files(model, files, tilt, masks=args.mask, linear=args.linear)
     grey = [p["id"] for p in preds if p.get("colour_reliable") is False]
     if grey:
         import sys
@@ -256,6 +259,8 @@ def cmd_predict(args) -> int:
     for entry, mask in zip(entries, args.mask or []):
         entry["mask"] = os.path.abspath(mask)
     meta = {"camera_tilt_deg": tilt} if tilt is not None else {"camera_tilt": "predicted per image"}
+    if args.linear:
+        meta["pixel_codes"] = "linear"
     write_predictions(args.out, entries, model=_model_label(args), inputs=files, **meta)
     print(f"wrote {args.out} ({len(entries)} predictions)")
     return 0

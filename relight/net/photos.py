@@ -119,9 +119,10 @@ def replace_surround(image: np.ndarray, mask: np.ndarray, how: str) -> np.ndarra
     return np.where(m[..., None], x, fill)
 
 
-def _with_surround(files: list[str], how: str) -> list[np.ndarray]:
+def _with_surround(files: list[str], how: str, linear: bool = False) -> list[np.ndarray]:
     """Each photo as linear RGB with its surroundings (outside its ``NAME.mask.png``, white
-    where the object is) changed by :func:`replace_surround`."""
+    where the object is) changed by :func:`replace_surround`; ``linear``: 8-bit codes read
+    as linear values, not sRGB."""
     from relight.colour import srgb_decode
     from relight.errors import DatasetError
     from relight.imageio import load_image
@@ -135,18 +136,20 @@ def _with_surround(files: list[str], how: str) -> list[np.ndarray]:
         if mask.shape != px.shape[:2]:
             raise DatasetError(f"{mask_path}: {mask.shape[1]}x{mask.shape[0]} mask for a "
                                f"{px.shape[1]}x{px.shape[0]} photo")
-        out.append(replace_surround(srgb_decode(px) if enc == "srgb" else px, mask, how))
+        out.append(replace_surround(srgb_decode(px) if enc == "srgb" and not linear else px, mask, how))
     return out
 
 
 def score_photo_set(model, folder: str, names: tuple[str, ...] | None = None,
-                    camera_tilt_deg: float | None = None, surround: str | None = None) -> dict:
+                    camera_tilt_deg: float | None = None, surround: str | None = None,
+                    linear: bool = False) -> dict:
     """Predict every image of a photo set (:func:`read_photo_set`) and score it against the
     true light, camera frame. ``camera_tilt_deg``: None = the model's own (camera head; else
     the paper's 45). ``surround``: everything outside the object (its ``NAME.mask.png``)
     changed first by :func:`replace_surround` in that way (``"black"``: the backdrop blacked
     out), a diagnostic of what in the surroundings moves the answer; a network of the objects
-    alone always reads them with everything outside the mask black.
+    alone always reads them with everything outside the mask black. ``linear``: the photos'
+    8-bit codes read as linear values (a camera proportional to the light), not sRGB.
     Returns per-image arrays ``id``, ``group`` (the object: the name before the light's
     number), ``direction_deg``, ``covered``, ``ood``, ``camera_tilt_deg``,
     ``to_light_camera`` and ``true_to_light_camera``."""
@@ -155,12 +158,12 @@ def score_photo_set(model, folder: str, names: tuple[str, ...] | None = None,
     if surround is None and model_surround(model) == "black":   # a network of the objects alone
         surround = "black"
     if surround is not None:
-        preds = predict_arrays(model, _with_surround(files, surround), None if camera_tilt_deg is None else
+        preds = predict_arrays(model, _with_surround(files, surround, linear), None if camera_tilt_deg is None else
                                [camera_tilt_deg] * len(files))
         for p, f in zip(preds, files):
             p["id"] = os.path.splitext(os.path.basename(f))[0]
     else:
-        preds = predict_files(model, files, camera_tilt_deg)
+        preds = predict_files(model, files, camera_tilt_deg, linear=linear)
     pred = np.array([p["to_light_camera"] for p in preds], dtype=np.float64).reshape(-1, 3)
     err = metrics.angle_deg(pred, truth)
     return {"id": [p["id"] for p in preds], "group": [i.split(".")[0] for i in (p["id"] for p in preds)],

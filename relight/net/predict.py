@@ -219,12 +219,12 @@ def read_input(path: str, res: int) -> tuple[torch.Tensor, str]:
     return x, note
 
 
-def _read_input(path: str, res: int, mask: str | None = None) -> tuple[torch.Tensor, str, bool]:
+def _read_input(path: str, res: int, mask: str | None = None, linear: bool = False) -> tuple[torch.Tensor, str, bool]:
     """:func:`read_input` and whether the image is grayscale (:func:`is_achromatic`); with
     ``mask`` (an image file: white where the objects are), the objects alone
-    (:func:`objects_alone`)."""
+    (:func:`objects_alone`); with ``linear``, a PNG/JPEG's codes read as linear values."""
     from relight.imageio import read_mask, read_srgb8
-    srgb8, note = read_srgb8(path)
+    srgb8, note = read_srgb8(path, linear=linear)
     if mask is not None:
         try:
             srgb8 = objects_alone(srgb8, read_mask(mask), linear=False)
@@ -276,7 +276,7 @@ def image_ids(files: list[str]) -> list[str]:
 
 
 def predict_files(model, files: list[str], camera_tilt_deg: float | None = None,
-                  masks: list[str] | None = None) -> list[dict]:
+                  masks: list[str] | None = None, linear: bool = False) -> list[dict]:
     """Predictions for image files; each dict also has ``id``, ``file`` and ``assumed``
     (how its pixels were interpreted), and ``colour_reliable`` = False for a grayscale
     image (:func:`is_achromatic`).
@@ -289,6 +289,9 @@ def predict_files(model, files: list[str], camera_tilt_deg: float | None = None,
         masks: one object mask file per image (white where the objects are; the image's
             size), or None: everything outside it is set black first. A model of the
             objects alone (:func:`model_surround` "black") needs them.
+        linear: the PNG/JPEG files hold linear values (a camera whose output is
+            proportional to the light, as measurement and machine-vision cameras store
+            it), not sRGB; EXR files are linear either way.
 
     Returns:
         One dict per file, in order, with the fields of :func:`predict_arrays`.
@@ -309,7 +312,7 @@ def predict_files(model, files: list[str], camera_tilt_deg: float | None = None,
                          "image's object mask (--mask, white where the objects are)")
     inputs, assumed, achromatic = [], [], []
     for k, f in enumerate(files):
-        x, how, grey = _read_input(f, model.config.res, None if masks is None else masks[k])
+        x, how, grey = _read_input(f, model.config.res, None if masks is None else masks[k], linear)
         inputs.append(x)
         assumed.append(how)
         achromatic.append(grey)
