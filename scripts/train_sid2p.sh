@@ -5,7 +5,7 @@
 # re-run the same command after a kill or a new session (--resume also lets a run made with
 # fewer --epochs continue up to this count; the plateau schedule does not depend on it).
 #   bash scripts/train_sid2p.sh [ROOT] [THREADS]
-# Then: relight calibrate --run ROOT/runs/sid2p-ft --data ROOT/sid2p-train --split val --out CAL
+# Then: relight calibrate --model ROOT/runs/sid2p-ft --data ROOT/sid2p-train --split val --out CAL
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=${1:-/root/relight-data}

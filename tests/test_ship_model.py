@@ -273,7 +273,7 @@ def test_card_of_a_run_on_two_folders(ship_model, world, tmp_path, monkeypatch, 
     run_cmd = next(line for line in reproduce if "--out RUN" in line)
     assert f"--data {train_dir} --data {other} --out RUN" in run_cmd
     assert f"--train-data {train_dir} --train-data {other} --test-data" in card
-    assert f"relight calibrate --run RUN --data {train_dir} --data {other} --split all" in card
+    assert f"relight calibrate --model RUN --data {train_dir} --data {other} --split all" in card
     assert f"of `{train_dir} + {other}` (12 images" in card
     gens = [line for line in reproduce if line.startswith("relight generate")]
     assert [g.split("--out ")[1].split()[0] for g in gens] == [train_dir, other, str(world / "test")]
