@@ -66,6 +66,9 @@ def default_sentence(name: str) -> str:
     """The card's sentence on what the model is for (``relight.net.io.DEFAULT_MODELS``)."""
     if name == "photo":
         return "It is the default model of `relight predict` and `relight evaluate`."
+    if name == "object":
+        return ("It reads photographs of objects through an object mask, the objects alone "
+                "(`relight predict --model object --mask MASK`); `photo` stays the default.")
     return f"It is the model for SID2-style synthetic rooms: `--model {name}`."
 
 
@@ -172,8 +175,17 @@ def architecture_text(config) -> str:
     return head + ":\n" + "\n".join(f"  {ln}" for ln in lines)
 
 
+def surround_text(config) -> str:
+    """The card's words on what the network sees around the objects (``NetConfig.surround``)."""
+    if getattr(config, "surround", "keep") == "keep":
+        return ""
+    return ("; the objects alone: everything outside the image's object mask black first (trained "
+            "with `--surround black` on the render masks; `relight predict --mask MASK` per image, "
+            "which this model requires)")
+
+
 # The one command that makes a shipped model's data, trains, calibrates it (resumable)
-SCRIPTS = {"photo": "scripts/train_photo.sh"}
+SCRIPTS = {"photo": "scripts/train_photo.sh", "object": "scripts/train_object.sh"}
 
 
 def script_line(name: str) -> str:
@@ -239,7 +251,7 @@ def train_command(s: dict, data_path, epochs: int | None = None, out: str = "RUN
             opts.append(f"{flag} {s[key]:g}" if isinstance(s[key], float) else f"{flag} {s[key]}")
     for key, flag, default in (("target_frame", "--target-frame", "world"), ("camera_weight", "--camera-weight", 0.0),
                                ("source", "--source", "image"), ("augment", "--augment", "none"),
-                               ("epoch_images", "--epoch-images", None)):
+                               ("epoch_images", "--epoch-images", None), ("surround", "--surround", "keep")):
         if s.get(key, default) != default:   # the photo model's options (docs/photo.md)
             opts.append(f"{flag} {s[key]:g}" if isinstance(s[key], float) else f"{flag} {s[key]}")
     opts.append(f"--torch-threads {s.get('threads', 1)}")
@@ -579,7 +591,7 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
     calibrate_line, ship_extra = "", ""
     cal = meta.get("kappa_calibration")
     if cal:
-        calibrate_line = (f"relight calibrate --run RUN {data_options(cal['data_dir'])} --split {cal['split']} "
+        calibrate_line = (f"relight calibrate --model RUN {data_options(cal['data_dir'])} --split {cal['split']} "
                           f"--mode {cal['settings']['mode']}{' --ood' if meta.get('ood') else ''} "
                           "--out CAL.safetensors\n")
         ship_extra = " --model CAL.safetensors"
@@ -600,11 +612,11 @@ def write_card(meta: dict, eval_dir: str, test_data: str, notes: str, prior_eval
     splits = ("The dataset's `train` split" if n_final == 1 else
               f"The `train` splits of these {n_final} datasets, joined")
     trained_on = ("synthetic datasets made by `relight generate` for real photographs (docs/photo.md)"
-                  if name == "photo" else "a synthetic SID2-style dataset made by `relight generate`")
-    ranges = ("" if name == "photo" else
+                  if name in ("photo", "object") else "a synthetic SID2-style dataset made by `relight generate`")
+    ranges = ("" if name in ("photo", "object") else
               "SID2 ranges: light r 20-50 m, tilt 30-90 step 5, pan step 1, CCT 2500-10000 K |Duv| <= 0.01;\n"
               "  camera r 20 m, tilt 10-70; 1-3 objects.\n  ")
-    history = ("[docs/photo.md](../../docs/photo.md)" if name == "photo"
+    history = ("[docs/photo.md](../../docs/photo.md)" if name in ("photo", "object")
                else "[docs/training.md](../../docs/training.md)")
     card = f"""# Model card: `{name}.safetensors`
 
@@ -619,7 +631,7 @@ Single Image with Deep Regression"), trained by `relight train` on {trained_on}.
 - {meta['parameters']:,} parameters; {meta['gflop_per_image']:.3f} GFLOP per {res} px image (forward).
 - Input: {res} x {res} 8-bit sRGB scaled to [0, 1] (PNG/JPEG as is; EXR / linear arrays encoded
   with `relight.imageio.to_srgb8` first, like the dataset PNGs; other sizes centre-cropped to a
-  square and bilinearly resized). Output: the 7-vector of `shared/conventions.md`, {output_text(config)}.
+  square and bilinearly resized){surround_text(config)}. Output: the 7-vector of `shared/conventions.md`, {output_text(config)}.
 - File: safetensors (no pickle), float16 weights (loaded as float32), {os.path.getsize(os.path.join(models_dir, f"{name}.safetensors")) / 1e6:.1f} MB; metadata in its
   header and in `{name}.json`; training log `{name}_log.csv`.
 
@@ -680,8 +692,9 @@ repeatable in its settings, not bit for bit (thread scheduling).
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--name", choices=SHIPPED_NAMES, default=SHIPPED_NAME,
-                    help="the shipped name: sid2 (SID2-style synthetic rooms; the default) or photo (real "
-                         "photographs, the default model of relight predict and evaluate)")
+                    help="the shipped name: sid2 (SID2-style synthetic rooms; the default), photo (real "
+                         "photographs, the default model of relight predict and evaluate) or object "
+                         "(photographs of objects read through a mask)")
     ap.add_argument("--run", required=True, help="training run folder (relight train --out)")
     ap.add_argument("--train-data", required=True, action="append",
                     help="the run's training dataset folder (repeat it, in the run's order, for a run "
