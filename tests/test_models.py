@@ -40,7 +40,7 @@ def _png(path) -> str:
 
 
 def test_the_package_ships_sid2_and_its_old_names_still_mean_it():
-    assert io.SHIPPED_NAMES == ("photo", "sid2") and io.DEFAULT_MODELS == ("photo", "sid2")
+    assert io.SHIPPED_NAMES == ("photo", "sid2", "object") and io.DEFAULT_MODELS == ("photo", "sid2")
     assert io.SHIPPED_NAME == "sid2" and io.SHIPPED_MODEL == io.shipped_model_path("sid2")   # exact: paths
     assert os.path.isfile(io.SHIPPED_MODEL)
     assert io.resolve_model("sid2") == io.SHIPPED_MODEL   # exact: paths
@@ -89,7 +89,7 @@ def test_other_values_are_files_or_run_folders(models, tmp_path, monkeypatch):
     assert io.resolve_model("nosuch") == "nosuch"
     (tmp_path / "sid2").mkdir()              # a folder named like a shipped model: the name wins
     assert io.resolve_model("sid2") == str(models / "sid2.safetensors")
-    with pytest.raises(io.ModelFileError, match=r"'other' is neither a shipped model name \(photo, sid2\)"):
+    with pytest.raises(io.ModelFileError, match=r"'other' is neither a shipped model name \(photo, sid2, object\)"):
         io.resolve_model("other")
     with pytest.raises(io.ModelFileError, match="model file not found"):
         io.resolve_model(str(tmp_path / "gone.safetensors"))
@@ -158,7 +158,7 @@ def test_every_network_option_has_the_one_help_text():
     from relight.cli import build_parser
     from relight.commands.argtypes import model_help
     text = model_help()
-    assert text == ("shipped model name (photo, sid2) or a .safetensors file or run folder "
+    assert text == ("shipped model name (photo, sid2, object) or a .safetensors file or run folder "
                     "(default: photo, else sid2)")
     parser = build_parser()
     sub = next(a for a in parser._actions if a.choices and "predict" in a.choices).choices

@@ -314,3 +314,20 @@ def test_photo_set_read_as_linear(tmp_path):
     got = score_photo_set(model, str(tmp_path), camera_tilt_deg=10.0, linear=True)
     ref = predict_arrays(model, [photo / 255.0 * mask[..., None]], [10.0])[0]
     np.testing.assert_allclose(got["to_light_camera"][0], ref["to_light_camera"], atol=1e-9)
+
+
+def test_the_shipped_object_model_reads_the_objects_alone(tmp_path, capsys):
+    """``--model object``: the objects alone, in the camera frame with its own camera head;
+    an image without a mask is one line and exit 2."""
+    from relight.cli import main
+    from relight.net.io import load_model_file, resolve_model
+    config = load_model_file(resolve_model("object")).config
+    assert config.surround == "black" and config.target_frame == "camera" and config.camera_head
+    from relight.imageio import write_png
+    write_png(str(tmp_path / "p.png"), np.full((20, 30, 3), 0.3, np.float32))
+    try:
+        code = main(["predict", str(tmp_path / "p.png"), "--model", "object", "--out", str(tmp_path / "o.json")])
+    except SystemExit as exc:
+        code = exc.code
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "reads the objects alone" in err and not (tmp_path / "o.json").exists()

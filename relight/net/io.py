@@ -10,8 +10,9 @@ tensor names or shapes -- raises :class:`ModelFileError` with a one-line reason.
 
 Shipped models live in :data:`MODELS_DIR` as ``NAME.safetensors`` (with ``NAME.json``,
 ``NAME_log.csv``, ``NAME_reliability.png`` and a card, written by ``scripts/ship_model.py``),
-one per name of :data:`SHIPPED_NAMES`: ``photo`` (trained for real photographs) and ``sid2``
-(relight's SID2-style synthetic rooms). :func:`resolve_model` turns what a user gives
+one per name of :data:`SHIPPED_NAMES`: ``photo`` (trained for real photographs), ``sid2``
+(relight's SID2-style synthetic rooms) and ``object`` (photographs of objects read through an
+object mask: the objects alone, ``relight predict --model object --mask MASK``). :func:`resolve_model` turns what a user gives
 (``None``, a shipped name, a file or a run folder) into a model file; ``None`` means the
 first shipped name of :data:`DEFAULT_MODELS` whose file is present. This module imports no
 torch until a model is read or written (the command line's options use its names).
@@ -37,7 +38,7 @@ if TYPE_CHECKING:   # torch and the network load with the first model read or wr
 
 MODEL_FORMAT = "relight.model/v1"
 MODELS_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "models")
-SHIPPED_NAMES = ("photo", "sid2")    # NAME.safetensors, NAME.json, NAME_log.csv, NAME_reliability.png
+SHIPPED_NAMES = ("photo", "sid2", "object")   # NAME.safetensors, NAME.json, NAME_log.csv, NAME_reliability.png
 DEFAULT_MODELS = ("photo", "sid2")   # what no --model means: the first of these that is shipped
 SHIPPED_NAME = "sid2"   # the SID2-style model (the paper's Tables 1-3); always shipped
 SHIPPED_MODEL = os.path.join(MODELS_DIR, f"{SHIPPED_NAME}.safetensors")
