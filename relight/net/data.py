@@ -19,7 +19,7 @@ from __future__ import annotations
 
 __all__ = [
     "SPLITS", "prepare_srgb8", "flip_y", "flip_image", "dataset_folders", "folders_record", "LightDataset",
-    "linear_at_res", "mask_at_res", "square_at_res", "model_dataset",
+    "linear_at_res", "mask_at_res", "square_at_res", "model_dataset", "NET_SURROUNDS",
 ]
 
 import copy
@@ -30,11 +30,14 @@ import torch
 from torch.utils.data import Dataset
 
 from relight import frames
-from relight.net.model import NET_SURROUNDS
 from relight.dataset import SPLIT_CHOICES, DatasetError, read_manifest, safe_join, split_records
 
 SPLITS = SPLIT_CHOICES   # one split or "all"
 SOURCES = ("image", "exr")   # what a LightDataset reads: the 8-bit PNG, or the linear EXR
+# What a network is trained to see around the objects: "keep", the whole image; "black", the
+# objects alone, everything outside an object mask black (``relight train --surround black``;
+# its images need a mask: ``relight predict --mask``). Model files written before it: "keep".
+NET_SURROUNDS = ("keep", "black")
 
 
 def linear_at_res(path: str, res: int) -> np.ndarray:

@@ -29,7 +29,7 @@ to predict the direction error without changing what the paper's terms train.
 from __future__ import annotations
 
 __all__ = [
-    "ARCH_NAME", "PAPER_ARCH_NAME", "ARCHES", "NET_SURROUNDS", "COLOUR_FLOOR", "KAPPA_INIT", "LOG_KAPPA_RANGE", "PAPER_SIZES",
+    "ARCH_NAME", "PAPER_ARCH_NAME", "ARCHES", "COLOUR_FLOOR", "KAPPA_INIT", "LOG_KAPPA_RANGE", "PAPER_SIZES",
     "NetConfig", "ConvBN", "SplitInception", "FactorisedInception7", "ExpandedInception", "GridReduction",
     "PaperEncoder", "LightNet", "MirrorAveraged", "head_kappa", "count_parameters", "flops_per_image",
     "camera_tilt_deg",
@@ -43,11 +43,7 @@ from torch import nn
 from torch.nn import functional as F
 
 from relight.frames import check_target_frame
-
-# What a network was trained to see around the objects: "keep", the whole image; "black", the
-# objects alone, everything outside an object mask black (``relight train --surround black``;
-# its images need a mask: ``relight predict --mask``). Files written before it: "keep".
-NET_SURROUNDS = ("keep", "black")
+from relight.net.data import NET_SURROUNDS
 
 ARCH_NAME = "sid2-inception-small/v1"
 PAPER_ARCH_NAME = "sid2-inception-paper/v1"
@@ -81,7 +77,7 @@ class NetConfig:
             light in the camera frame, the paper's encoding for a level camera); files
             written before it existed are ``"world"``. Decode through
             :func:`relight.net.evaluate.decode_outputs` (:func:`relight.frames.target_to_y`).
-        surround: what the network sees around the objects, a name of :data:`NET_SURROUNDS`
+        surround: what the network sees around the objects, a name of :data:`relight.net.data.NET_SURROUNDS`
             (``"black"``: the objects alone, so every image it reads needs an object mask).
     """
     res: int = 128

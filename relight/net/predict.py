@@ -150,7 +150,7 @@ def _predict_inputs(model, inputs: list[torch.Tensor], camera_tilt_deg, batch_si
 
 
 def model_surround(model) -> str:
-    """What ``model`` was trained to see around the objects (:data:`relight.net.model.NET_SURROUNDS`):
+    """What ``model`` was trained to see around the objects (:data:`relight.net.data.NET_SURROUNDS`):
     ``"black"`` for a network of the objects alone, whose images need an object mask."""
     return getattr(getattr(model, "config", None), "surround", "keep")
 

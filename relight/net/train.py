@@ -167,7 +167,7 @@ class TrainConfig:
                                 f"{', '.join(AUGMENTS)}, got {self.source!r} and {self.augment!r}")
         if self.augment != "none" and self.source != "exr":
             raise TrainingError("--augment works on the linear EXRs: give --source exr")
-        from relight.net.model import NET_SURROUNDS
+        from relight.net.data import NET_SURROUNDS
         if self.surround not in NET_SURROUNDS:
             raise TrainingError(f"surround must be one of {', '.join(NET_SURROUNDS)}, got {self.surround!r}")
         if self.surround != "keep" and self.source != "exr":
