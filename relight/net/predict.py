@@ -166,8 +166,11 @@ def objects_alone(image: np.ndarray, mask: np.ndarray, linear: bool = True) -> n
         raise ImageError(f"mask of {m.shape[1]}x{m.shape[0]} pixels for an image of {x.shape[1]}x{x.shape[0]}")
     if linear:
         return (x[..., :3] * m[..., None]).astype(np.float32)
-    lin = srgb_decode(x[..., :3].astype(np.float64) / 255.0) * m[..., None]
-    return np.round(srgb_encode(lin) * 255.0).astype(np.uint8)
+    out = np.where(m[..., None] >= 1.0, x[..., :3], 0).astype(np.uint8)   # wholly object / wholly not
+    edge = (m > 0.0) & (m < 1.0)                                           # only these need the curve
+    lin = srgb_decode(x[..., :3][edge].astype(np.float64) / 255.0) * m[edge][:, None]
+    out[edge] = np.round(srgb_encode(lin) * 255.0).astype(np.uint8)
+    return out
 
 
 def predict_arrays(model, images_linear: list[np.ndarray], camera_tilt_deg: list[float] | None) -> list[dict]:
