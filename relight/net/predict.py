@@ -155,17 +155,15 @@ def model_surround(model) -> str:
     return getattr(getattr(model, "config", None), "surround", "keep")
 
 
-def objects_alone(image: np.ndarray, mask: np.ndarray, linear: bool = True) -> np.ndarray:
-    """``image`` (H, W, 3) with everything outside ``mask`` (H, W: coverage in [0, 1], or
-    bool) black: the linear pixels times the mask (sRGB ones, ``linear=False``, decoded
-    first and encoded again, 8-bit codes in and out)."""
+def objects_alone(srgb8: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """8-bit sRGB codes ``(H, W, 3)`` with everything outside ``mask`` (H, W: coverage in
+    [0, 1], or bool) black: the light of each pixel times its coverage, encoded again
+    (linear images: :func:`relight.net.photos.replace_surround` ``"black"``)."""
     from relight.colour import srgb_decode, srgb_encode
     m = np.clip(np.asarray(mask, np.float64), 0.0, 1.0)
-    x = np.asarray(image)
+    x = np.asarray(srgb8)
     if m.shape != x.shape[:2]:
         raise ImageError(f"mask of {m.shape[1]}x{m.shape[0]} pixels for an image of {x.shape[1]}x{x.shape[0]}")
-    if linear:
-        return (x[..., :3] * m[..., None]).astype(np.float32)
     out = np.where(m[..., None] >= 1.0, x[..., :3], 0).astype(np.uint8)   # wholly object / wholly not
     edge = (m > 0.0) & (m < 1.0)                                           # only these need the curve
     lin = srgb_decode(x[..., :3][edge].astype(np.float64) / 255.0) * m[edge][:, None]
@@ -230,7 +228,7 @@ def _read_input(path: str, res: int, mask: str | None = None, linear: bool = Fal
     srgb8, note = read_srgb8(path, linear=linear)
     if mask is not None:
         try:
-            srgb8 = objects_alone(srgb8, read_mask(mask), linear=False)
+            srgb8 = objects_alone(srgb8, read_mask(mask))
         except ImageError as exc:
             raise ImageError(f"{mask}: {exc}") from None
         note += ", outside its mask black"
