@@ -214,11 +214,12 @@ def main(argv=None) -> int:
                 head_keys = ("direction_deg", "world_direction_deg", "colour_deg")
                 print(f"  {'':<42}  {'n':>4}  cam-frame dir   world dir (true tilt)   colour   cone90  ood"
                       "    follows x y  in-image  slant |err| bias")
+            masked = kind == "data" and any(model_surround(m) != "keep" for _, m in models) and _has_masks(folder)
             for name, model in models:
                 if kind == "photo":
                     s = photos.summary(photos.score_photo_set(model, folder, names, args.camera_tilt, surround, linear))
                     print(_row(f"  {_label(name)}", s))
-                elif model_surround(model) != "keep" and not _has_masks(folder):
+                elif model_surround(model) != "keep" and not masked:
                     print(f"  {_label(name):<42}  skipped: it reads the objects alone, and this set has no object masks")
                     continue
                 else:
