@@ -1,6 +1,6 @@
 """Render a relight dataset's scene files again with Blender Cycles: a twin dataset.
 
-The twin has the same ids, records, scene files and splits as the source dataset; only
+The twin has the same ids, records, scene files (and object masks) and splits as the source dataset; only
 its images (``images/ID.png``, ``exr/ID.exr``) come from Cycles (``relight export-blender``'s
 scene translation, :class:`relight.scene.blender.CyclesWorker`). It is the "other renderer" test
 of ``benchmarks/bench_photos.py``: the same scenes seen through another renderer.
@@ -35,6 +35,15 @@ sys.path.insert(0, REPO)
 DEFAULT_SPP = 64   # Cycles at 64 spp: relative RMSE about 2% at 128 px, the dataset's noise target
 
 
+def _copy_geometry(src: str, out: str, rec: dict) -> None:
+    """The record's files no renderer changes: its scene file and, where it names one, its
+    object mask (the objects' coverage depends on the geometry and the camera alone)."""
+    for key in ("scene", "mask"):
+        if isinstance(rec.get(key), str):
+            os.makedirs(os.path.dirname(os.path.join(out, rec[key])), exist_ok=True)
+            shutil.copyfile(os.path.join(src, rec[key]), os.path.join(out, rec[key]))
+
+
 def cycles_twin(src: str, out: str, spp: int = DEFAULT_SPP, limit: int | None = None,
                 progress: bool = True) -> int:
     """Render every record of dataset ``src`` (first ``limit``) with Cycles into ``out``.
@@ -63,7 +72,7 @@ def cycles_twin(src: str, out: str, spp: int = DEFAULT_SPP, limit: int | None = 
         for rec in tqdm(todo, desc="cycles twin", disable=not progress):
             spec = load_spec(src, rec)
             image, _seconds = worker.render(spec, spp, spec.render.seed)
-            shutil.copyfile(os.path.join(src, rec["scene"]), os.path.join(out, rec["scene"]))
+            _copy_geometry(src, out, rec)
             write_exr(os.path.join(out, rec["exr"]), image)
             write_png(os.path.join(out, rec["image"]), image)
             with open(os.path.join(out, MANIFEST), "a") as f:   # after the files are complete
@@ -122,7 +131,7 @@ def view_transform_twin(src: str, out: str, view: str = "AgX", progress: bool = 
         if run.returncode != 0:
             raise BlenderError(f"Blender's view transform failed: {(run.stderr or run.stdout).strip().splitlines()[-1:]}")
         for r, (_, png) in zip(todo, pairs):
-            shutil.copyfile(os.path.join(src, r["scene"]), os.path.join(out, r["scene"]))
+            _copy_geometry(src, out, r)
             shutil.copyfile(os.path.join(src, r["exr"]), os.path.join(out, r["exr"]))
             shutil.move(png, os.path.join(out, r["image"]))
             with open(os.path.join(out, MANIFEST), "a") as f:

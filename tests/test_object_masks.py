@@ -13,7 +13,7 @@ import pytest
 from relight import frames
 from relight.generator.sampling import GeneratorConfig
 
-from conftest import sphere_scene
+from conftest import needs_blender, sphere_scene
 
 CFG = GeneratorConfig(res=24, spp=2, void_fraction=0.5, fov_range_deg=(30.0, 60.0),
                       view_halfwidth_m=(2.5, 4.0), split=(0.5, 0.5, 0.0))
@@ -329,3 +329,20 @@ def test_the_shipped_object_model_reads_the_objects_alone(tmp_path, capsys):
         code = exc.code
     err = capsys.readouterr().err.strip()
     assert code == 2 and "reads the objects alone" in err and not (tmp_path / "o.json").exists()
+
+
+@needs_blender
+def test_a_cycles_twin_keeps_the_object_masks(tmp_path, mi):
+    """benchmarks/cycles_twin.py on a dataset with object masks: the twin's records name the
+    same masks (geometry alone sets them), so a model of the objects alone reads it."""
+    from conftest import load_script
+    from relight.dataset import read_manifest
+    from relight.generator.run import generate
+    from relight.net.data import LightDataset
+    src, twin = tmp_path / "src", tmp_path / "twin"
+    generate(src, 2, seed=9, cfg=dataclasses.replace(CFG, res=16, object_masks=True), progress=False)
+    assert load_script("benchmarks/cycles_twin.py").cycles_twin(str(src), str(twin), spp=2, progress=False) == 2
+    for rec in read_manifest(twin):
+        assert (twin / rec["mask"]).read_bytes() == (src / rec["mask"]).read_bytes()
+    black = LightDataset(twin, "all", res=16, source="exr", surround="black")
+    assert all(np.isfinite(black.linear_image(i)).all() for i in range(len(black)))
