@@ -26,6 +26,7 @@ Errors are in degrees; a failure counts as 180.
 
     python benchmarks/bench_probe.py --set ~/relight-data/issue-29/set --make 40   # once (~15 min)
     python benchmarks/bench_probe.py --set ~/relight-data/issue-29/set [--qa DIR]
+    python benchmarks/bench_probe.py --set ~/relight-data/issue-29/heldout --make 60 --first 1000   # never tuned on
     python benchmarks/bench_probe.py --set ~/relight-data/issue-29/set --floor   # what 8-bit leaves
     python benchmarks/bench_probe.py --set ~/relight-data/issue-29/set --refilter DIR   # then --set DIR:
     #   the Cycles renders as Blender's default pixel filter (Blackman-Harris, 1.5 px) would give them
@@ -105,9 +106,9 @@ def refilter_set(folder: str, out: str) -> None:
     print(f"wrote the Blackman-Harris copy of {folder} to {out}")
 
 
-def make_set(folder: str, count: int, spp: int) -> None:
-    """Write ``count`` probe scenes and their Mitsuba and Cycles renders into ``folder``
-    (existing files are kept: the set grows or resumes)."""
+def make_set(folder: str, count: int, spp: int, first: int = 0) -> None:
+    """Write ``count`` probe scenes (seeds ``first`` on) and their Mitsuba and Cycles
+    renders into ``folder`` (existing files are kept: the set grows or resumes)."""
     from tqdm import tqdm
 
     from relight import backend
@@ -119,7 +120,7 @@ def make_set(folder: str, count: int, spp: int) -> None:
     os.makedirs(folder, exist_ok=True)
     backend.init()
     paths = []
-    for i in tqdm(range(count), desc="Mitsuba renders", unit="scene"):
+    for i in tqdm(range(first, first + count), desc="Mitsuba renders", unit="scene"):
         path = os.path.join(folder, f"probe{i:03d}.json")
         paths.append(path)
         if os.path.exists(path) and os.path.exists(path[:-5] + ".mitsuba.png"):
@@ -330,6 +331,8 @@ def main() -> None:
                     help="folder of the harder probe set")
     ap.add_argument("--make", type=at.int_in(0, 10_000, "a scene count"), default=0,
                     help="first make (or complete) a set of this many scenes")
+    ap.add_argument("--first", type=at.int_in(0, 1_000_000, "a scene seed"), default=0,
+                    help="with --make: the first scene's seed (a held-out set: --first 1000)")
     ap.add_argument("--spp", type=at.spp, default=64, help="samples per pixel when making the set")
     ap.add_argument("--renderers", default="cycles,mitsuba")
     ap.add_argument("--kinds", default="png,exr", help="which files of the set: png (8-bit) and/or exr")
@@ -349,7 +352,7 @@ def main() -> None:
         refilter_set(args.set, args.refilter)
         return
     if args.make:
-        make_set(args.set, args.make, args.spp)
+        make_set(args.set, args.make, args.spp, args.first)
     if args.floor:
         png_floor(args.set)
         return

@@ -228,6 +228,55 @@ def test_a_bright_surface_touching_a_small_highlight_does_not_pull_it():
     assert _angle(found.to_light, light) < DIR_TOL_DEG
 
 
+def _streak(x, y, offset_px, width_px=0.8, peak=0.94):
+    """A lit edge's reflection: a bright line running diagonally (down and to the right)
+    past pixel ``(x, y)``, its crest ``offset_px`` up and to the right of it."""
+    yy, xx = np.mgrid[0:H, 0:W] + 0.5
+    d = (xx - x) * 0.7071 - (yy - y) * 0.7071 - offset_px
+    along = np.abs((xx - x) * 0.7071 + (yy - y) * 0.7071)
+    return np.where(along < 6.0, peak * np.exp(-0.5 * (d / width_px) ** 2), 0.0)
+
+
+@pytest.mark.parametrize("offset_px", [2.0, 2.6])
+def test_a_bright_streak_touching_a_box_filtered_clipped_highlight_does_not_pull_it(offset_px):
+    # a render's box filter, a light far above the clip level: the light's pixels are those
+    # its image touches, all clipped, and nothing around them is blurred. A lit edge's
+    # reflection runs diagonally past them, its crest touching them (2.0) or its flank only
+    # (2.6); a descent from the clipped core ran onto it (a Cycles scene: 4.0 deg, against 0.9
+    # for the clipped pixels' centroid; here 0.5 and 0.3 px)
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 60.0, 9.0)
+    light = np.array([0.3, 0.35, 0.88]) / np.linalg.norm([0.3, 0.35, 0.88])
+    spot, _ = pg.predict_highlight(cam, sphere, light)
+    image = _render(cam, sphere, light, light_radius_deg=0.01)[..., 0]     # the sphere alone
+    x, y = int(spot[0]), int(spot[1])
+    image = np.maximum(image, _streak(x + 0.5, y + 0.5, offset_px))
+    image[y, x:x + 2] = 1.0                   # the light's three clipped pixels, an L
+    image[y + 1, x + 1] = 1.0
+    found = pg.locate_highlight(_quantise(np.repeat(image[..., None], 3, -1)), cam, sphere, clip_level=1.0)
+    assert found.quality["clipped"]
+    assert math.dist(found.pixel, (x + 0.5 + 2.0 / 3.0, y + 0.5 + 1.0 / 3.0)) < 0.05
+
+
+@pytest.mark.parametrize("offset_px", [2.0, 2.8])
+def test_a_bright_streak_touching_a_lens_blurred_clipped_highlight_does_not_pull_it(offset_px):
+    # a photograph: the lens blurs the clipped highlight into a halo on every side, which
+    # still counts; a streak beside it has no counterpart on the far side of the light
+    # and does not (0.4-0.6 px before, crest touching; 0.16 px, flank only)
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 60.0, 9.0)
+    light = np.array([0.3, 0.35, 0.88]) / np.linalg.norm([0.3, 0.35, 0.88])
+    spot, _ = pg.predict_highlight(cam, sphere, light)
+    clean = _quantise(_render(cam, sphere, light, light_radius_deg=0.8, radiance=200.0))
+    streak = _streak(*spot, offset_px + 0.8, width_px=0.6, peak=0.93)
+    image = np.maximum(clean, np.repeat(streak[..., None], 3, -1))
+    ref = pg.locate_highlight(clean, cam, sphere, clip_level=1.0)
+    found = pg.locate_highlight(image, cam, sphere, clip_level=1.0)
+    assert found.quality["clipped"]
+    assert math.dist(found.pixel, ref.pixel) < 0.05
+    assert _angle(found.to_light, light) < DIR_TOL_DEG
+
+
 @pytest.mark.parametrize("inside_px, clip", [(1.4, True), (1.0, False), (1.4, False)])
 def test_a_highlight_by_the_rim_keeps_its_pixels_in_the_rim_band(inside_px, clip):
     # a light behind the sphere: its highlight 1-1.4 px inside the outline, where the search

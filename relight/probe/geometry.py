@@ -63,6 +63,8 @@ AMBIGUITY_MARGIN = 0.5         # two highlight candidates within this score of e
 ISOLATION_RING_PX = (2, 3)     # a candidate's surroundings: pixels 2-3 px from it (past its blur) ...
 ISOLATION_LEVEL = 0.1          # ... whose 90th percentile above 10% of the candidate's peak ...
 ISOLATION_WEIGHT = 1.5         # ... costs 1.5 score units per unit of that share (a lit surface continues)
+MIRROR_SHARE = 0.25            # beside a clipped core, a pixel whose mirror image holds under 25% of it is not the light
+DOWNHILL_MARGIN = 0.05         # a highlight's blur pixel has no neighbour outside it brighter by 5% of its peak
 
 
 @dataclass(frozen=True)
@@ -485,8 +487,14 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     to_light /= np.linalg.norm(to_light)
     px = float(np.average(xs + x0 + 0.5, weights=weights[ys, xs]))
     py = float(np.average(ys + y0 + 0.5, weights=weights[ys, xs]))
-    compact = _spread_deg(refl[region]) <= spread_limit
-    if compact and (region.sum() <= SMALL_HIGHLIGHT_PX or (merged and best_core.sum() <= SMALL_HIGHLIGHT_PX)):
+    # in an image that clips, a light far above the clip level clips wherever it reaches:
+    # its pixels are the clipped core, and what else stands above half the peak beside it
+    # (a lit edge's reflection touching it) is not the light, however few its pixels
+    clips = clip_level is not None and peak >= 0.995 * clip_level
+    light_pixels = best_core if clips else region
+    compact = _spread_deg(refl[light_pixels]) <= spread_limit
+    if compact and (region.sum() <= SMALL_HIGHLIGHT_PX
+                    or ((merged or clips) and best_core.sum() <= SMALL_HIGHLIGHT_PX)):
         # the core's own centre, then a soft window around it above the level of its
         # surroundings (the 90th percentile of a ring just outside the window: a lit
         # floor's reflection beside a small clipped highlight, or touching it, must not
@@ -513,11 +521,10 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
         # in a linear image (nothing clips) the light's blur continues into the rim band too,
         # far above anything the outline's mixing can give there (half the core's peak); in a
         # clipped one a mixed rim pixel can reach that level, so only the core itself goes there
-        clips = clip_level is not None and peak >= 0.995 * clip_level
         rim_tail = rim_band & (crop >= HIGHLIGHT_FRACTION * float(crop[best_core].max())) if not clips else False
         own = _downhill_from(crop, best_core, (usable | rim_tail) & ~((cores > 0) & ~best_core),
                              int(math.ceil(radius)) + 2)
-        px, py = _soft_window_centroid(crop, own, start, level, radius)
+        px, py = _soft_window_centroid(crop, own, start, level, radius, core=best_core if clips else None)
         px, py = px + x0, py + y0
     at_centroid = surface(camera, sphere, np.array([px]), np.array([py]))
     if compact and at_centroid["hit"][0]:
@@ -564,8 +571,14 @@ def _core_into_rim(crop: np.ndarray, core: np.ndarray, rim_band: np.ndarray) -> 
 def _downhill_from(crop: np.ndarray, seed: np.ndarray, allowed: np.ndarray, steps: int) -> np.ndarray:
     """Pixels reached from ``seed`` within ``steps`` steps (8-neighbours) through
     ``allowed`` pixels, each step to a strictly darker pixel than a reached neighbour:
-    a blurred highlight's own pixels, not a brighter structure beside it."""
-    reached = np.asarray(seed, bool).copy()
+    a blurred highlight's own pixels, not a brighter structure beside it.
+
+    The descent can also run down the flank of a bright structure touching the seed (a
+    lit edge's reflection beside a clipped highlight). A blur's pixel has no brighter
+    neighbour outside the blur, so reached pixels with one (brighter by more than
+    :data:`DOWNHILL_MARGIN` of the seed's peak) are dropped, until none is left."""
+    seed = np.asarray(seed, bool)
+    reached = seed.copy()
     square = np.ones((3, 3), bool)
     for _ in range(steps):
         around = ndimage.maximum_filter(np.where(reached, crop, -np.inf), footprint=square, mode="constant",
@@ -574,17 +587,31 @@ def _downhill_from(crop: np.ndarray, seed: np.ndarray, allowed: np.ndarray, step
         if not new.any():
             break
         reached |= new
-    return reached
+    margin = DOWNHILL_MARGIN * float(crop[seed].max())
+    while True:
+        beside = ndimage.maximum_filter(np.where(allowed & ~reached, crop, -np.inf), footprint=square,
+                                        mode="constant", cval=-np.inf)
+        drop = reached & ~seed & (beside > crop + margin)
+        if not drop.any():
+            return reached
+        reached &= ~drop
 
 
 def _soft_window_centroid(crop: np.ndarray, usable: np.ndarray, start: tuple[float, float], background: float,
-                          radius: float, rounds: int = 6) -> tuple[float, float]:
+                          radius: float, rounds: int = 6, core: np.ndarray | None = None) -> tuple[float, float]:
     """Sub-pixel centre ``(x, y)`` (crop pixel coordinates, centres at +0.5) of a compact
     highlight: the centroid of intensity above ``background`` within a round window of
     ``radius`` pixels whose edge tapers linearly over two pixels, re-centred on the
     centroid until it settles. A pixel entering or leaving the window does so with a
     weight near zero, so the estimate follows an image shift smoothly (a threshold
-    region would jump by whole pixels)."""
+    region would jump by whole pixels).
+
+    With a clipped ``core`` (the light itself), every other pixel counts only when the
+    point mirrored through the current centre (bilinear) holds at least
+    :data:`MIRROR_SHARE` of its signal: a lens blurs the light alike on all sides, while
+    a bright structure beside it (a lit edge's reflection touching it) has no
+    counterpart on the far side and drops out. (A weight of the lesser of the two would
+    move with the clipped plateau's shape; the half-pixel shift test fails with it.)"""
     h, w = crop.shape
     ys, xs = np.mgrid[0:h, 0:w] + 0.5
     signal = np.clip(crop - background, 0.0, None) * usable
@@ -592,6 +619,10 @@ def _soft_window_centroid(crop: np.ndarray, usable: np.ndarray, start: tuple[flo
     for _ in range(rounds):
         taper = np.clip(radius + 1.0 - np.hypot(xs - cx, ys - cy), 0.0, 2.0) / 2.0
         weights = signal * taper
+        if core is not None:
+            mirrored = ndimage.map_coordinates(signal, [2.0 * cy - ys - 0.5, 2.0 * cx - xs - 0.5], order=1,
+                                               mode="constant", cval=0.0)
+            weights = np.where(core | (mirrored >= MIRROR_SHARE * signal), weights, 0.0)
         total = weights.sum()
         if not total > 0:
             break
