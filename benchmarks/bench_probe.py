@@ -222,9 +222,11 @@ def evaluate_psm(rows: list, qa_dir: str | None, folder: str = PSM) -> None:
     lights = np.loadtxt(os.path.join(folder, "lights.txt"), skiprows=1)
     mask_path = os.path.join(folder, "chrome.mask.png")
     mask = load_mask(mask_path)
+    highlights = []
     for i, truth in enumerate(lights):
         path = os.path.join(folder, f"chrome.{i}.png")
         res = _probe(path, chrome_mask=mask_path)
+        highlights.append(res.entry["quality"]["highlight_px"])
         rows.append(("psm_spheres, mask", "front", _angle_deg(res.entry["to_light_camera"], truth), path))
         if qa_dir:
             write_qa(os.path.join(qa_dir, f"psm_chrome.{i}.png"), res, title=f"psm chrome.{i}")
@@ -235,6 +237,26 @@ def evaluate_psm(rows: list, qa_dir: str | None, folder: str = PSM) -> None:
         rows.append(("psm_spheres, automatic", "front", err, path))
         rows.append(("psm_spheres, orthographic + mask (previous)", "front",
                      _angle_deg(probes.chrome_light_direction(read_probe_image(path)[0], mask), truth), path))
+    reference_circle(lights, np.array(highlights), res.entry["chrome_circle"])
+
+
+def reference_circle(lights: np.ndarray, highlights: np.ndarray, circle) -> None:
+    """A diagnostic of the reference, not a method: the orthographic circle that best
+    explains the reference directions from the highlights found (least squares in
+    degrees), beside the mask's circle. If the reference was derived with another circle,
+    the highlights agree with it far better there than with the mask's."""
+    from scipy import optimize
+
+    def errors(c):
+        n = np.column_stack([(highlights[:, 0] - c[0]) / c[2], -(highlights[:, 1] - c[1]) / c[2]])
+        n = np.column_stack([n, np.sqrt(np.clip(1.0 - (n ** 2).sum(1), 0.0, None))])
+        to_light = 2.0 * n[:, 2:3] * n - np.array([0.0, 0.0, 1.0])
+        return np.degrees(np.arccos(np.clip((to_light * lights).sum(1), -1.0, 1.0)))
+    fit = optimize.least_squares(errors, np.asarray(circle, float)).x
+    print(f"psm_spheres reference: mask circle ({circle[0]:.1f}, {circle[1]:.1f}, r {circle[2]:.1f}) "
+          f"median {np.median(errors(circle)):.2f} deg; the circle that best explains the reference from "
+          f"the same highlights ({fit[0]:.1f}, {fit[1]:.1f}, r {fit[2]:.1f}) median {np.median(errors(fit)):.2f} "
+          f"max {np.max(errors(fit)):.2f}")
 
 
 RADIUS_BINS_PX = ((10.0, 15.0), (15.0, 20.0), (20.0, 45.0))   # the team's renders: radius 15-20 px
