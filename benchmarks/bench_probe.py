@@ -237,14 +237,20 @@ def evaluate_psm(rows: list, qa_dir: str | None, folder: str = PSM) -> None:
         rows.append(("psm_spheres, automatic", "front", err, path))
         rows.append(("psm_spheres, orthographic + mask (previous)", "front",
                      _angle_deg(probes.chrome_light_direction(read_probe_image(path)[0], mask), truth), path))
-    reference_circle(lights, np.array(highlights), res.entry["chrome_circle"])
+    circle = res.entry["chrome_circle"]
+    fit, at_mask, at_fit = reference_circle(lights, np.array(highlights), circle)
+    print(f"psm_spheres reference: mask circle ({circle[0]:.1f}, {circle[1]:.1f}, r {circle[2]:.1f}) median "
+          f"{np.median(at_mask):.2f} deg; the circle that best explains the reference from the same highlights "
+          f"({fit[0]:.1f}, {fit[1]:.1f}, r {fit[2]:.1f}) median {np.median(at_fit):.2f} max {np.max(at_fit):.2f}")
 
 
-def reference_circle(lights: np.ndarray, highlights: np.ndarray, circle) -> None:
-    """A diagnostic of the reference, not a method: the orthographic circle that best
-    explains the reference directions from the highlights found (least squares in
-    degrees), beside the mask's circle. If the reference was derived with another circle,
-    the highlights agree with it far better there than with the mask's."""
+def reference_circle(lights: np.ndarray, highlights: np.ndarray, circle) -> tuple:
+    """A diagnostic of a reference, not a method: the orthographic circle ``(cx, cy, r)``
+    that best explains the reference directions ``lights`` (camera frame) from the
+    highlight pixels found (least squares in degrees), started from ``circle`` (the
+    mask's). Returns ``(fitted circle, errors at circle, errors at the fitted one)``: if
+    the reference was derived with another circle, the highlights agree with it far
+    better there than with the mask's."""
     from scipy import optimize
 
     def errors(c):
@@ -253,10 +259,7 @@ def reference_circle(lights: np.ndarray, highlights: np.ndarray, circle) -> None
         to_light = 2.0 * n[:, 2:3] * n - np.array([0.0, 0.0, 1.0])
         return np.degrees(np.arccos(np.clip((to_light * lights).sum(1), -1.0, 1.0)))
     fit = optimize.least_squares(errors, np.asarray(circle, float)).x
-    print(f"psm_spheres reference: mask circle ({circle[0]:.1f}, {circle[1]:.1f}, r {circle[2]:.1f}) "
-          f"median {np.median(errors(circle)):.2f} deg; the circle that best explains the reference from "
-          f"the same highlights ({fit[0]:.1f}, {fit[1]:.1f}, r {fit[2]:.1f}) median {np.median(errors(fit)):.2f} "
-          f"max {np.max(errors(fit)):.2f}")
+    return fit, errors(np.asarray(circle, float)), errors(fit)
 
 
 RADIUS_BINS_PX = ((10.0, 15.0), (15.0, 20.0), (20.0, 45.0))   # the team's renders: radius 15-20 px

@@ -801,3 +801,19 @@ def test_a_linear_hdr_image_is_searched_as_a_camera_would_expose_it(monkeypatch)
     monkeypatch.setattr(detect, "hough_circles", lambda image, *a, **k: [])
     detect.find_spheres(hdr, pg.Camera.from_fov(80, 60, FOV_DEG))
     np.testing.assert_array_equal(seen[0], exposed)
+
+
+def test_the_reference_diagnostic_recovers_the_circle_a_reference_was_made_with():
+    # lights derived (orthographic mirror) from highlights on a circle 12% larger than the
+    # mask's: the diagnostic finds that circle, and the mask's disagrees by degrees
+    bench = load_script("benchmarks/bench_probe.py")
+    rng = np.random.default_rng(3)
+    used = np.array([256.5, 150.8, 134.4])
+    highlights = np.column_stack([used[0] + rng.uniform(-60, 60, 12), used[1] + rng.uniform(-60, 60, 12)])
+    n = np.column_stack([(highlights[:, 0] - used[0]) / used[2], -(highlights[:, 1] - used[1]) / used[2]])
+    n = np.column_stack([n, np.sqrt(1.0 - (n ** 2).sum(1))])
+    lights = 2.0 * n[:, 2:3] * n - np.array([0.0, 0.0, 1.0])
+    fit, at_mask, at_fit = bench.reference_circle(lights, highlights, (253.8, 148.3, 119.5))
+    assert np.allclose(fit, used, atol=0.05)
+    assert np.max(at_fit) < 0.01
+    assert np.median(at_mask) > 1.0
