@@ -16,6 +16,9 @@ Methods, per renderer and file type:
 
 - circle given: the circle closest to the true outline (what a person would mark),
   true field of view;
+- circle marked: that circle moved as a careful hand would place it (centre off by
+  ``MARKED_PX`` rms per axis, radius by 0.6 of that; seeded by the scene), refined within
+  the default tolerance;
 - circles given (+gray): the same with the gray sphere's circle as well (its shading
   helps choose among equally bright highlight candidates);
 - automatic: no circle (the procedure finds the chrome sphere), true field of view;
@@ -51,6 +54,7 @@ TARGETS = {"cycles png, circle given": (1.0, 5.0), "cycles png, circles given (+
            "cycles png, automatic": (1.5, 8.0),
            "psm_spheres, mask": (2.0, None)}
 PNG_CLIP_SHARE = 0.02
+MARKED_PX = 0.5        # a hand-marked circle: its centre off by this rms per axis, its radius by 0.6 of it
 
 
 def _angle_deg(a, b) -> float:
@@ -188,6 +192,15 @@ def evaluate_set(folder: str, rows: list, detect: list, qa_dir: str | None, rend
             print(f"{path}: {exc}")
             err = 180.0
         rows.append((f"{name}, circle given", light, err, os.path.basename(path)))
+        try:    # as a person marks it: the true circle moved by MARKED_PX rms (seeded by the scene)
+            rng = np.random.default_rng(int(os.path.basename(scene_path)[5:-5]))
+            marked = np.asarray(t["chrome_circle"]) + rng.normal(0.0, MARKED_PX, 3) * np.array([1.0, 1.0, 0.6])
+            res = _probe(path, chrome_circle=tuple(marked), fov_deg=t["fov_deg"])
+            err = _angle_deg(res.entry["to_light_camera"], truth)
+        except ProbeError as exc:
+            print(f"{path}: {exc}")
+            err = 180.0
+        rows.append((f"{name}, circle marked ({MARKED_PX:g} px)", light, err, os.path.basename(path)))
         try:    # the paper's setting: the gray sphere in view too, its circle given as well
             res = _probe(path, chrome_circle=tuple(t["chrome_circle"]), fov_deg=t["fov_deg"], diffuse=path,
                          diffuse_circle=tuple(t["gray_circle"]))
