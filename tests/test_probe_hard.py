@@ -817,3 +817,64 @@ def test_the_reference_diagnostic_recovers_the_circle_a_reference_was_made_with(
     assert np.allclose(fit, used, atol=0.05)
     assert np.max(at_fit) < 0.01
     assert np.median(at_mask) > 1.0
+
+
+# ------------------------------------------------------------------ an ambiguous detection
+def _two_mirrors(tmp_path):
+    """Two mirror spheres side by side, each with its own light (the left one's up and to
+    the right, the right one's up and to the left), written as an 8-bit PNG; returns the
+    path, the camera, both spheres and both lights."""
+    from relight.imageio import write_png
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    left, right = _sphere_at(cam, 50.0, 60.0, 5.0), _sphere_at(cam, 112.0, 60.0, 5.0)
+    l1 = np.array([0.4, 0.4, 0.82]) / np.linalg.norm([0.4, 0.4, 0.82])
+    l2 = np.array([-0.4, 0.3, 0.87]) / np.linalg.norm([-0.4, 0.3, 0.87])
+    a = _render(cam, left, l1, light_radius_deg=2.0)
+    b = _render(cam, right, l2, light_radius_deg=2.0)
+    ys, xs = np.mgrid[0:H, 0:W] + 0.5
+    on_right = pg.surface(cam, right, xs, ys)["hit"]
+    image = np.where(on_right[..., None], b, a)
+    path = str(tmp_path / "two.png")
+    write_png(path, image)
+    return path, cam, left, right, l1, l2
+
+
+def _candidate(cam, sphere, support):
+    return {"sphere": sphere, "circle": pg.outline_circle(cam, sphere), "chrome": True, "diffuse": False,
+            "edge_support": support, "contrast": 10.0, "highlight": 0.0}
+
+
+@pytest.mark.parametrize("rival_support, ambiguous", [(0.55, True), (0.45, False)])
+def test_a_rival_circle_scoring_nearly_as_well_widens_the_uncertainty(tmp_path, monkeypatch, rival_support,
+                                                                      ambiguous):
+    # the detector's two chrome circles score 0.6 and 0.55 (margin 0.05 of 0.1: ambiguity
+    # 0.5) or 0.6 and 0.45 (not ambiguous); the chosen one's light stands, and the budget
+    # grows by the angle to the rival's light times the ambiguity
+    from relight.probe.run import ProbeConfig, run_probe
+    path, cam, left, right, l1, l2 = _two_mirrors(tmp_path)
+    monkeypatch.setattr(detect, "find_spheres", lambda image, camera, clip=None: [
+        _candidate(cam, left, 0.6), _candidate(cam, right, rival_support)])
+    entry = run_probe(ProbeConfig(chrome=path, fov_deg=FOV_DEG)).entry
+    assert _angle(entry["to_light_camera"], l1) < 3.0
+    budget = entry["quality"]["error_budget_deg"]
+    if not ambiguous:
+        assert "detection" not in entry and "detection_deg" not in budget
+        return
+    det = entry["detection"]
+    assert det["ambiguity"] == pytest.approx(0.5, abs=0.01)     # (the radius term differs a little)
+    assert abs(det["separation_deg"] - _angle(l1, l2)) < 3.0
+    assert _angle(det["alternative_to_light_camera"], l2) < 3.0
+    assert np.allclose(det["alternative_circle"], pg.outline_circle(cam, right), atol=1e-2)
+    assert budget["detection_deg"] == pytest.approx(det["ambiguity"] * det["separation_deg"], abs=0.01)
+    assert entry["quality_deg"] == pytest.approx(math.hypot(budget["circle_deg"], budget["highlight_deg"],
+                                                            budget["camera_deg"], budget["detection_deg"]), abs=0.01)
+
+
+def test_the_rival_is_another_circle_not_the_same_one_found_twice():
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    picked = _candidate(cam, _sphere_at(cam, 50.0, 60.0, 5.0), 0.6)
+    twin = _candidate(cam, _sphere_at(cam, 51.0, 60.5, 5.2), 0.59)     # the same sphere, a little off
+    other = _candidate(cam, _sphere_at(cam, 112.0, 60.0, 5.0), 0.52)
+    rival, margin = detect.rival_sphere([picked, twin, other], picked, "chrome")
+    assert rival is other and margin == pytest.approx(0.08, abs=0.002)
+    assert detect.rival_sphere([picked, twin], picked, "chrome") == (None, math.inf)

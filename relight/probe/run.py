@@ -70,6 +70,7 @@ class ProbeResult:
     highlight: geom.Highlight | None = None
     diffuse_image: np.ndarray | None = None
     diffuse_sphere: Sphere | None = None
+    alternative_sphere: Sphere | None = None    # an ambiguous detection's rival circle
 
 
 def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mask_path: str | None = None,
@@ -85,7 +86,10 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
     image's edges (unless ``refine`` is off or ``tolerance_px`` is 0) only within
     ``tolerance_px`` of its centre and radius, and the refinement is kept only when the
     outline then fits the edges better than the given circle
-    (:func:`relight.probe.detect.constrained_refinement`); ``refinement`` reports it."""
+    (:func:`relight.probe.detect.constrained_refinement`); ``refinement`` reports it.
+    A detected chrome sphere's ``refinement`` holds the detection's ``ambiguity`` (0-1) and
+    the ``rival`` sphere when another circle scores within :data:`relight.probe.detect.DETECTION_MARGIN`
+    of the one chosen (:func:`relight.probe.detect.rival_sphere`)."""
     if mask_path is not None:
         mask = detect.load_mask(mask_path)
         return geom.sphere_from_mask(camera, mask), mask, "mask", {}
@@ -102,7 +106,12 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
     if not candidates:
         candidates.extend(detect.find_spheres(image, camera, clip_level))
     found = detect.pick_sphere(candidates, kind, exclude)
-    return found["sphere"], None, "detected", {}
+    rival, margin = detect.rival_sphere(candidates, found, kind, exclude) if kind == "chrome" else (None, 0.0)
+    if rival is None or margin >= detect.DETECTION_MARGIN:
+        return found["sphere"], None, "detected", {}
+    # another circle scores nearly as well: the detection is ambiguous (see run_probe)
+    return found["sphere"], None, "detected", {"ambiguity": 1.0 - margin / detect.DETECTION_MARGIN,
+                                               "rival": rival["sphere"]}
 
 
 def run_probe(cfg: ProbeConfig) -> ProbeResult:
@@ -157,7 +166,10 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
         direction = hl.to_light
         entry["chrome_circle"] = [round(v, 3) for v in chrome_circle]
         entry["chrome_found_by"] = found
-        if refinement:
+        if found == "detected":
+            if refinement:
+                _detection_ambiguity(entry, result, hl, refinement, image, camera, clip, d_dir)
+        elif refinement:
             entry["chrome_circle_refinement"] = refinement
         entry["chrome_centre_camera"] = [round(float(v), 6) for v in sphere.c / np.linalg.norm(sphere.c)]
         entry["quality"] = {k: (round(v, 4) if isinstance(v, float) else v) for k, v in hl.quality.items()
@@ -186,6 +198,30 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
     tilt = cfg.camera_tilt_deg if cfg.camera_tilt_deg is not None else 0.0
     entry["pan_deg"], entry["tilt_deg"] = camera_to_pan_tilt(direction, tilt)
     return result
+
+
+def _detection_ambiguity(entry: dict, result: "ProbeResult", hl: geom.Highlight, report: dict,
+                         image: np.ndarray, camera: Camera, clip, d_dir) -> None:
+    """An ambiguous detection (``report`` of :func:`locate_sphere`): the light as the rival
+    circle gives it, and the error budget widened by the angle between the two times the
+    ambiguity (``detection_deg``), as for two highlight candidates. Writes
+    ``entry["detection"]`` and keeps the rival for the QA overlay; a rival on which no
+    highlight is found widens nothing (it is not a chrome sphere with a light)."""
+    rival = report["rival"]
+    try:
+        other = geom.locate_highlight(image, camera, rival, None, clip, expect_to_light=d_dir)
+    except ProbeError:
+        return
+    separation = math.degrees(math.acos(float(np.clip(other.to_light @ hl.to_light, -1.0, 1.0))))
+    budget = hl.quality["error_budget_deg"]
+    budget["detection_deg"] = round(report["ambiguity"] * separation, 3)
+    budget["total_deg"] = round(math.hypot(budget["total_deg"], budget["detection_deg"]), 3)
+    hl.quality["uncertainty_deg"] = budget["total_deg"]
+    entry["detection"] = {"ambiguity": round(report["ambiguity"], 3),
+                          "alternative_circle": [round(v, 3) for v in detect.outline_circle(camera, rival)],
+                          "alternative_to_light_camera": [round(float(v), 6) for v in other.to_light],
+                          "separation_deg": round(separation, 2)}
+    result.alternative_sphere = rival
 
 
 def _draw(canvas, camera: Camera, sphere: Sphere | None, highlight: geom.Highlight | None, colour,
@@ -232,13 +268,13 @@ def _draw(canvas, camera: Camera, sphere: Sphere | None, highlight: geom.Highlig
     cv2.line(canvas, (c[0], c[1] - arm), (c[0], c[1] + arm), (255, 0, 255), thick, cv2.LINE_AA, shift=4)
 
 
-CHROME_BGR, DIFFUSE_BGR = (0, 255, 0), (255, 255, 0)
+CHROME_BGR, DIFFUSE_BGR, RIVAL_BGR = (0, 255, 0), (255, 255, 0), (0, 255, 255)
 
 
 def write_qa(path: str, result: ProbeResult, title: str = "") -> None:
     """QA overlay PNG: the image with the outlines (green chrome, cyan diffuse), the
     highlight (magenta cross; a rival candidate, when the choice was ambiguous, as a
-    yellow x), the normal there (orange, from the sphere's centre) and the reflected
+    yellow x; a rival circle of an ambiguous detection in yellow), the normal there (orange, from the sphere's centre) and the reflected
     direction toward the light (red arrow); on the right, each sphere enlarged with the
     same marks; below, the numbers, with the error budget (circle, highlight, camera
     model, in degrees)."""
@@ -253,6 +289,7 @@ def write_qa(path: str, result: ProbeResult, title: str = "") -> None:
     full = cv2.resize(to_srgb8(image, exposure)[..., ::-1], (max(1, round(w * scale)), max(1, round(h * scale))),
                       interpolation=cv2.INTER_AREA).copy()
     same = result.diffuse_image is result.chrome_image
+    _draw(full, cam, result.alternative_sphere, None, RIVAL_BGR, scale, 0.0, 0.0, 1)
     _draw(full, cam, result.chrome_sphere, result.highlight, CHROME_BGR, scale, 0.0, 0.0, 1)
     if same or result.chrome_image is None:
         _draw(full, cam, result.diffuse_sphere, None, DIFFUSE_BGR, scale, 0.0, 0.0, 1)
@@ -287,8 +324,9 @@ def write_qa(path: str, result: ProbeResult, title: str = "") -> None:
                      f"{' clipped' if q['clipped'] else ''}; view angle {q['view_angle_deg']:.0f} deg; "
                      f"outline rms {q['outline_rms_px']:.2f} px; ambiguity {q['ambiguity']:.2f}")
         b = q["error_budget_deg"]
+        detection = f"  detection {b['detection_deg']:.2f}" if "detection_deg" in b else ""
         lines.append(f"error budget (deg, 1 sigma): circle {b['circle_deg']:.2f}  highlight {b['highlight_deg']:.2f}"
-                     f"  camera model {b['camera_deg']:.2f}  -> total {b['total_deg']:.2f}"
+                     f"  camera model {b['camera_deg']:.2f}{detection}  -> total {b['total_deg']:.2f}"
                      f"  [chrome {e['chrome_found_by']}]")
     for i, text in enumerate(t for t in lines if t):
         cv2.putText(panel, text, (6, height + 18 + 20 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1,
