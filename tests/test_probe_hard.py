@@ -878,3 +878,15 @@ def test_the_rival_is_another_circle_not_the_same_one_found_twice():
     rival, margin = detect.rival_sphere([picked, twin, other], picked, "chrome")
     assert rival is other and margin == pytest.approx(0.08, abs=0.002)
     assert detect.rival_sphere([picked, twin], picked, "chrome") == (None, math.inf)
+
+
+def test_the_command_names_the_rival_circle(tmp_path, monkeypatch, capsys):
+    path, cam, left, right, l1, l2 = _two_mirrors(tmp_path)
+    monkeypatch.setattr(detect, "find_spheres", lambda image, camera, clip=None: [
+        _candidate(cam, left, 0.6), _candidate(cam, right, 0.55)])
+    out = tmp_path / "probe.json"
+    assert _run(["probe", "--chrome", path, "--fov", str(FOV_DEG), "--out", str(out)]) == 0
+    cx, cy, r = pg.outline_circle(cam, right)
+    assert f"note: another circle, ({cx:.1f}, {cy:.1f}) r {r:.1f}" in capsys.readouterr().out
+    with open(out) as f:
+        assert "detection" in json.load(f)["predictions"][0]

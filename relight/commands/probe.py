@@ -124,6 +124,12 @@ def cmd_probe(args) -> int:
     print(f"{ident}: to_light_camera ({d[0]:+.3f}, {d[1]:+.3f}, {d[2]:+.3f}), pan_rel {entry['pan_deg']:.1f} deg, "
           f"tilt {entry['tilt_deg']:.1f} deg, rgb ({rgb[0]:.3f}, {rgb[1]:.3f}, {rgb[2]:.3f}) "
           f"[{entry['method']}{quality}] -> {args.out}")
+    if "detection" in entry:
+        det = entry["detection"]
+        cx, cy, r = det["alternative_circle"]
+        print(f"note: another circle, ({cx:.1f}, {cy:.1f}) r {r:.1f}, looks nearly as much like the chrome sphere "
+              f"(ambiguity {det['ambiguity']:.2f}; its light is {det['separation_deg']:.0f} deg away): "
+              f"check the QA overlay or give --chrome-circle")
     return 0
 
 
