@@ -770,7 +770,8 @@ def rival_sphere(candidates: list[dict], picked: dict, kind: str, exclude: list[
     :data:`DETECTION_MARGIN` the detection is ambiguous: on 100 scenes of the harder probe
     set (Cycles PNG; the tuning 40 and a first held-out 60), 4 of the 11 chosen circles
     with a runner-up that close were wrong (errors of 39-137 deg), and 2 of the other 89
-    erred by more than 20 deg (21 and 74)."""
+    erred by more than 20 deg (21 and 74); on a second held-out 60, made after the margin
+    was chosen, it caught none of the 4 wrong circles (docs/probe.md, "Error budget")."""
     cx, cy, r = picked["circle"]
     others = [c for c in _pool(candidates, kind, exclude) if c is not picked and (
         math.hypot(c["circle"][0] - cx, c["circle"][1] - cy) > r / 3.0 or abs(math.log(c["circle"][2] / r)) > 0.2)]
