@@ -237,6 +237,14 @@ def _streak(x, y, offset_px, width_px=0.8, peak=0.94):
     return np.where(along < 6.0, peak * np.exp(-0.5 * (d / width_px) ** 2), 0.0)
 
 
+def _streak_scene():
+    """A ~30 px mirror sphere and its light: camera, sphere, direction, highlight pixel."""
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 60.0, 9.0)
+    light = np.array([0.3, 0.35, 0.88]) / np.linalg.norm([0.3, 0.35, 0.88])
+    return cam, sphere, light, pg.predict_highlight(cam, sphere, light)[0]
+
+
 @pytest.mark.parametrize("offset_px", [2.0, 2.6])
 def test_a_bright_streak_touching_a_box_filtered_clipped_highlight_does_not_pull_it(offset_px):
     # a render's box filter, a light far above the clip level: the light's pixels are those
@@ -244,10 +252,7 @@ def test_a_bright_streak_touching_a_box_filtered_clipped_highlight_does_not_pull
     # reflection runs diagonally past them, its crest touching them (2.0) or its flank only
     # (2.6); a descent from the clipped core ran onto it (a Cycles scene: 4.0 deg, against 0.9
     # for the clipped pixels' centroid; here 0.5 and 0.3 px)
-    cam = pg.Camera.from_fov(W, H, FOV_DEG)
-    sphere = _sphere_at(cam, 80.0, 60.0, 9.0)
-    light = np.array([0.3, 0.35, 0.88]) / np.linalg.norm([0.3, 0.35, 0.88])
-    spot, _ = pg.predict_highlight(cam, sphere, light)
+    cam, sphere, light, spot = _streak_scene()
     image = _render(cam, sphere, light, light_radius_deg=0.01)[..., 0]     # the sphere alone
     x, y = int(spot[0]), int(spot[1])
     image = np.maximum(image, _streak(x + 0.5, y + 0.5, offset_px))
@@ -263,10 +268,7 @@ def test_a_bright_streak_touching_a_lens_blurred_clipped_highlight_does_not_pull
     # a photograph: the lens blurs the clipped highlight into a halo on every side, which
     # still counts; a streak beside it has no counterpart on the far side of the light
     # and does not (0.4-0.6 px before, crest touching; 0.16 px, flank only)
-    cam = pg.Camera.from_fov(W, H, FOV_DEG)
-    sphere = _sphere_at(cam, 80.0, 60.0, 9.0)
-    light = np.array([0.3, 0.35, 0.88]) / np.linalg.norm([0.3, 0.35, 0.88])
-    spot, _ = pg.predict_highlight(cam, sphere, light)
+    cam, sphere, light, spot = _streak_scene()
     clean = _quantise(_render(cam, sphere, light, light_radius_deg=0.8, radiance=200.0))
     streak = _streak(*spot, offset_px + 0.8, width_px=0.6, peak=0.93)
     image = np.maximum(clean, np.repeat(streak[..., None], 3, -1))
