@@ -110,9 +110,10 @@ def refilter_set(folder: str, out: str) -> None:
     print(f"wrote the Blackman-Harris copy of {folder} to {out}")
 
 
-def make_set(folder: str, count: int, spp: int, first: int = 0) -> None:
-    """Write ``count`` probe scenes (seeds ``first`` on) and their Mitsuba and Cycles
-    renders into ``folder`` (existing files are kept: the set grows or resumes)."""
+def make_set(folder: str, count: int, spp: int, first: int = 0, cycles: bool = True) -> None:
+    """Write ``count`` probe scenes (seeds ``first`` on) and their Mitsuba and (unless not
+    ``cycles``) Cycles renders into ``folder`` (existing files are kept: the set grows or
+    resumes)."""
     from tqdm import tqdm
 
     from relight import backend
@@ -136,9 +137,9 @@ def make_set(folder: str, count: int, spp: int, first: int = 0) -> None:
         write_exr(path[:-5] + ".mitsuba.exr", image)
         write_png(path[:-5] + ".mitsuba.png", image, exposure=d["png_exposure"])
         atomic_write(path, lambda tmp, d=d: open(tmp, "w").write(json.dumps(d, indent=1)))
-    python = blender_python()
+    python = blender_python() if cycles else None
     if python is None:
-        print("no Blender environment: Cycles renders skipped")
+        print("Cycles renders skipped" + ("" if not cycles else " (no Blender environment)"))
         return
     todo = [p for p in paths if not os.path.exists(p[:-5] + ".cycles.png")]
     if not todo:
@@ -371,6 +372,8 @@ def main() -> None:
                     help="first make (or complete) a set of this many scenes")
     ap.add_argument("--first", type=at.int_in(0, 1_000_000, "a scene seed"), default=0,
                     help="with --make: the first scene's seed (a held-out set: --first 1000)")
+    ap.add_argument("--no-cycles", action="store_true",
+                    help="with --make: Mitsuba renders only (fast; e.g. training scenes for a learned detector)")
     ap.add_argument("--spp", type=at.spp, default=64, help="samples per pixel when making the set")
     ap.add_argument("--renderers", default="cycles,mitsuba")
     ap.add_argument("--kinds", default="png,exr", help="which files of the set: png (8-bit) and/or exr")
@@ -390,7 +393,7 @@ def main() -> None:
         refilter_set(args.set, args.refilter)
         return
     if args.make:
-        make_set(args.set, args.make, args.spp, args.first)
+        make_set(args.set, args.make, args.spp, args.first, cycles=not args.no_cycles)
     if args.floor:
         png_floor(args.set)
         return
