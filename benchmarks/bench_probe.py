@@ -21,9 +21,11 @@ Methods, per renderer and file type:
   the default tolerance;
 - circles given (+gray): the same with the gray sphere's circle as well (its shading
   helps choose among equally bright highlight candidates);
-- automatic: no circle (the procedure finds the chrome sphere), true field of view;
-  ``detector miss`` counts scenes where the chrome sphere found is not the true one
-  (centre more than a third of the radius away) or none is found.
+- automatic: no circle (the procedure finds the chrome sphere, the learned locator's
+  prior on), true field of view; ``detector miss`` counts scenes where the chrome sphere
+  found is not the true one (centre more than a third of the radius away) or none is
+  found; with ``--rules-only`` also "automatic (rules only)": the hand-written detector
+  alone (``relight probe --no-locator``).
 
 Errors are in degrees; a failure counts as 180.
 
@@ -166,7 +168,7 @@ def _probe(path: str, **kw):
 
 
 def evaluate_set(folder: str, rows: list, detect: list, qa_dir: str | None, renderers, kinds,
-                 automatic: bool = True) -> None:
+                 automatic: bool = True, rules_only: bool = False) -> None:
     from tqdm import tqdm
 
     from relight.errors import ProbeError
@@ -212,19 +214,21 @@ def evaluate_set(folder: str, rows: list, detect: list, qa_dir: str | None, rend
         rows.append((f"{name}, circles given (+gray)", light, err, os.path.basename(path)))
         if not automatic:
             continue
-        try:
-            res = _probe(path, fov_deg=t["fov_deg"])
-            err = _angle_deg(res.entry["to_light_camera"], truth)
-            cx, cy, r = res.entry["chrome_circle"]
-            tx, ty, tr = t["chrome_circle"]
-            miss = math.hypot(cx - tx, cy - ty) > tr / 3.0
-            if qa_dir:
-                write_qa(os.path.join(qa_dir, os.path.basename(path)[:-4] + ".auto.png"), res,
-                         title=f"{os.path.basename(path)} automatic: error {err:.2f} deg")
-        except ProbeError:
-            err, miss = 180.0, True
-        rows.append((f"{name}, automatic", light, err, os.path.basename(path)))
-        detect.append((name, miss, os.path.basename(path)))
+        for locator in (True, False) if rules_only else (True,):
+            suffix = "" if locator else " (rules only)"
+            try:
+                res = _probe(path, fov_deg=t["fov_deg"], locator=locator)
+                err = _angle_deg(res.entry["to_light_camera"], truth)
+                cx, cy, r = res.entry["chrome_circle"]
+                tx, ty, tr = t["chrome_circle"]
+                miss = math.hypot(cx - tx, cy - ty) > tr / 3.0
+                if qa_dir:
+                    write_qa(os.path.join(qa_dir, os.path.basename(path)[:-4] + f".auto{'' if locator else '-rules'}.png"),
+                             res, title=f"{os.path.basename(path)} automatic{suffix}: error {err:.2f} deg")
+            except ProbeError:
+                err, miss = 180.0, True
+            rows.append((f"{name}, automatic{suffix}", light, err, os.path.basename(path)))
+            detect.append((name + suffix, miss, os.path.basename(path)))
 
 
 def evaluate_psm(rows: list, qa_dir: str | None, folder: str = PSM) -> None:
@@ -381,6 +385,8 @@ def main() -> None:
     ap.add_argument("--psm", default=PSM, help="the psm_spheres folder (default: $RELIGHT_SHARED_DATA/psm_spheres, else shared/data "
                          "next to the checkout)")
     ap.add_argument("--no-auto", action="store_true", help="circles given only (automatic detection is slow)")
+    ap.add_argument("--rules-only", action="store_true",
+                    help="also detect without the learned locator (rows \"automatic (rules only)\")")
     ap.add_argument("--qa", default=None, help="write QA overlays to this folder")
     ap.add_argument("--floor", action="store_true",
                     help="only the 8-bit floor: the light's position from the Cycles EXR's clipped pixels")
@@ -403,7 +409,7 @@ def main() -> None:
     detect: list = []
     if os.path.isdir(args.set):
         evaluate_set(args.set, rows, detect, args.qa, args.renderers.split(","), args.kinds.split(","),
-                     not args.no_auto)
+                     not args.no_auto, args.rules_only)
     else:
         print(f"no probe set at {args.set}: make it with --make 40")
     if args.no_psm:

@@ -243,3 +243,24 @@ def test_cli_automatic(small_render, tmp_path):
     assert entry["chrome_found_by"] == entry["diffuse_found_by"] == "detected"
     assert _angle(entry["to_light_camera"], scene.to_light) < RENDER_DIR_TOL_DEG
     assert np.hypot(*(np.asarray(entry["diffuse_circle"][:2]) - scene.circle("gray")[:2])) < DETECT_CIRCLE_TOL_PX
+
+
+def test_cli_automatic_reports_the_locator_and_runs_without_it(small_render, tmp_path):
+    # another scene generator than the locator was trained on (a 256 x 192 validation
+    # render): its most likely circle lies on the chrome sphere, the entry says so, and
+    # --no-locator (the rules alone) finds the same sphere without the field (its outline
+    # fit may start from the locator's proposal too: within a quarter pixel)
+    scene, path = small_render
+    truth = scene.circle("chrome")
+    circles = []
+    for extra in ([], ["--no-locator"]):
+        out = tmp_path / f"p{len(extra)}.json"
+        assert main(["probe", "--chrome", path, "--fov", str(scene.fov_deg), "--out", str(out)] + extra) == 0
+        entry = json.loads(out.read_text())["predictions"][0]
+        assert ("locator" in entry) == (not extra)
+        circles.append(entry["chrome_circle"])
+        assert _angle(entry["to_light_camera"], scene.to_light) < RENDER_DIR_TOL_DEG
+    assert circles[0] == pytest.approx(circles[1], abs=0.25)
+    loc = json.loads((tmp_path / "p0.json").read_text())["predictions"][0]["locator"]
+    assert np.hypot(loc["circle"][0] - truth[0], loc["circle"][1] - truth[1]) < truth[2] / 3.0
+    assert loc["probability"] > 0.5

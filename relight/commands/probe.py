@@ -36,6 +36,9 @@ def add_commands(sub) -> None:
                    help="how far (pixels) a given circle's centre and radius may be moved to fit the "
                    "image's edges; the move is kept only if the outline then fits better "
                    f"(default {CIRCLE_TOLERANCE_PX}; 0: use the circle exactly as given)")
+    p.add_argument("--no-locator", dest="locator", action="store_false",
+                   help="automatic detection by the hand-written rules alone, without the learned "
+                   "sphere locator's prior on which circle is the chrome sphere")
     p.add_argument("--folder", help="batch: a folder of photographs, measured as listed by --circles")
     p.add_argument("--circles", help="batch: CSV with a header row: image (file in --folder), optional "
                    "chrome_cx,chrome_cy,chrome_r (empty: found automatically), diffuse_cx,diffuse_cy,"
@@ -55,6 +58,9 @@ def add_commands(sub) -> None:
     p.add_argument("--qa", default=None, help="write a QA overlay PNG (outline, highlight, normal, direction, "
                    "error budget); with --folder, a folder of them (one per image)")
     p.set_defaults(func=cmd_probe)
+
+
+LOCATOR_DOUBT = 0.1     # the locator's probability at the chosen circle below which the CLI says so
 
 
 def check_circle_fits(option: str, circle, image: str) -> None:
@@ -108,7 +114,7 @@ def cmd_probe(args) -> int:
     cfg = ProbeConfig(chrome=args.chrome, chrome_circle=args.chrome_circle, chrome_mask=args.chrome_mask,
                       diffuse=args.diffuse, diffuse_circle=args.diffuse_circle, diffuse_mask=args.diffuse_mask,
                       fov_deg=args.fov, focal_px=args.focal_px, camera_tilt_deg=args.camera_tilt,
-                      linear=args.linear, circle_tolerance_px=args.circle_tolerance)
+                      linear=args.linear, circle_tolerance_px=args.circle_tolerance, locator=args.locator)
     result = run_probe(cfg)
     ident = args.id or os.path.splitext(os.path.basename(args.chrome or args.diffuse))[0]
     entry = {"id": ident, **result.entry}
@@ -130,6 +136,11 @@ def cmd_probe(args) -> int:
         print(f"note: another circle, ({cx:.1f}, {cy:.1f}) r {r:.1f}, looks nearly as much like the chrome sphere "
               f"(ambiguity {det['ambiguity']:.2f}; its light is {det['separation_deg']:.0f} deg away): "
               f"check the QA overlay or give --chrome-circle")
+    loc = entry.get("locator")
+    if loc and loc["probability"] < LOCATOR_DOUBT:
+        cx, cy, r = loc["circle"]
+        print(f"note: the learned sphere locator puts the chrome sphere elsewhere, ({cx:.1f}, {cy:.1f}) r {r:.1f} "
+              f"(probability {loc['probability']:.2f} at the circle chosen): check the QA overlay or give --chrome-circle")
     return 0
 
 
@@ -154,7 +165,7 @@ def _cmd_batch(args) -> int:
     rows = read_circles(args.circles, args.folder)
     base = ProbeConfig(chrome=rows[0].path, fov_deg=args.fov, focal_px=args.focal_px,
                        camera_tilt_deg=args.camera_tilt, linear=args.linear,
-                       circle_tolerance_px=args.circle_tolerance)
+                       circle_tolerance_px=args.circle_tolerance, locator=args.locator)
     entries = run_batch(rows, base, args.qa)
     meta = {"camera_tilt_deg": args.camera_tilt if args.camera_tilt is not None else 0.0,
             "settings": {k: v for k, v in vars(args).items() if k != "func"}}

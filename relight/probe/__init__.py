@@ -8,6 +8,9 @@ a chrome sphere's highlight gives the direction, a gray sphere's shading the col
   highlight localisation.
 * :mod:`relight.probe.detect`: finding the spheres (circle detection, outline
   refinement, chrome or diffuse).
+* :mod:`relight.probe.locator`: a small learned network, trained on generated probe
+  scenes, that says where a chrome sphere's centre likely is: a proposal and a prior on
+  the detector's choice.
 * :mod:`relight.probe.run`: ``relight probe`` as one library call, with the QA overlay.
 * :mod:`relight.probe.batch`: a folder of photographs with each image's circles from a CSV.
 
@@ -16,5 +19,5 @@ photographs) is docs/probe.md.
 """
 
 __all__ = [
-    "detect", "geometry", "ortho", "run",
+    "detect", "geometry", "locator", "ortho", "run",
 ]

@@ -72,6 +72,10 @@ CHROME_INSIDE_PX = 0.5         # a chrome outline's edge points further inside t
 PICK_HIGHLIGHT_WEIGHT = 0.1    # choosing the chrome sphere: per unit of highlight likelihood (strikes) ...
 PICK_RADIUS_WEIGHT = 0.1       # ... and per unit of log radius (a chrome sphere's reflections are smaller circles)
 DETECTION_MARGIN = 0.1         # another circle of the kind within this pick score of the chosen one: ambiguous
+LOCATOR_WEIGHT = 0.1           # ... and per unit of the log probability the learned locator puts near its
+LOCATOR_FLOOR = 0.01           # centre (relight.probe.locator), that probability taken as at least this
+LOCATOR_ADMIT = 0.5            # a circle neither chrome nor diffuse by the rules is a chrome candidate too
+                               # when the locator puts this much probability near its centre
 RADIUS_HYPOTHESES = (1.0, 0.85, 1.15)  # a Hough circle's radius is often off on a chrome sphere's faint rim
 CHROME_MIN_CONTRAST = 4.0      # chrome: brightest / median sphere pixel at least this,
 CHROME_MIN_CLIPPED_CONTRAST = 2.0  # ... or, when its brightest pixel clips (the contrast then is only a lower
@@ -488,7 +492,7 @@ def exposed_like_a_camera(image: np.ndarray) -> np.ndarray:
     return np.clip(np.asarray(image, np.float64) * camera_exposure(image), 0.0, 1.0)
 
 
-def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = None) -> list[dict]:
+def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = None, extra=()) -> list[dict]:
     """Refined sphere candidates with their features: ``sphere``, ``edge_support``,
     ``contrast``, ``residual``, ``chrome`` and ``diffuse`` (bool), best supported first.
     Of candidates of one kind and similar radius within half a radius of each other the
@@ -496,7 +500,9 @@ def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = N
     supported one (a highlight or a reflection). ``clip_level``: the image's (1.0 for an
     integer file: a clipped highlight's contrast is then read as a lower bound,
     :func:`hough_circles`, :func:`sphere_features`; None for a linear HDR one that does not
-    clip, which is searched as a camera would have exposed it, :func:`exposed_like_a_camera`)."""
+    clip, which is searched as a camera would have exposed it, :func:`exposed_like_a_camera`).
+    ``extra``: circles ``(cx, cy, r)`` proposed before the Hough circles (the learned
+    locator's, :mod:`relight.probe.locator`), screened and refined as they are."""
     if clip_level is None:   # linear HDR: look for spheres in the image a camera would have taken
         image, clip_level = exposed_like_a_camera(image), 1.0
     smoothed = _edge_image(image)
@@ -516,7 +522,7 @@ def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = N
     def screen(c):
         found = screened_at(*c)
         return -1 if found is None else found[0]
-    proposals = hough_circles(image) if clip_level is None else hough_circles(image, clip_level, screen)
+    proposals = [tuple(float(v) for v in c) for c in extra] + list(hough_circles(image, clip_level, screen))
     for cx, cy, r in proposals:
         # Hough circles near one already refined to the same place add nothing
         if any(math.hypot(cx - c[0], cy - c[1]) < 0.05 * r and abs(r - c[2]) < 0.05 * r for c in refined):
@@ -730,8 +736,13 @@ def is_diffuse(f: dict) -> bool:
 
 
 def _pool(candidates: list[dict], kind: str, exclude) -> list[dict]:
-    """Candidates of ``kind`` not overlapping an ``exclude`` circle."""
-    return [c for c in candidates if c[kind] and not any(
+    """Candidates of ``kind`` not overlapping an ``exclude`` circle; for chrome also those
+    the rules call neither chrome nor diffuse where the learned locator puts at least
+    :data:`LOCATOR_ADMIT` of its probability (a chrome sphere whose highlight test fails:
+    a dim light, a highlight spread by a blurred lens)."""
+    def of_kind(c):
+        return c[kind] or (kind == "chrome" and not c["diffuse"] and c.get("locator", 0.0) >= LOCATOR_ADMIT)
+    return [c for c in candidates if of_kind(c) and not any(
         math.hypot(c["circle"][0] - e[0], c["circle"][1] - e[1]) < c["circle"][2] + e[2] for e in exclude)]
 
 
@@ -741,8 +752,10 @@ def _pick_score(c: dict, kind: str) -> float:
         # light's (:func:`relight.probe.geometry.highlight_likelihood`), a large sphere (a
         # chrome sphere's outline is often faint where it reflects what lies beside it, and
         # its reflections show smaller circles inside it)
-        # (a clipped highlight's contrast is at least the clip level over the median: ``clip_contrast``)
-        return (c["edge_support"]
+        # (a clipped highlight's contrast is at least the clip level over the median: ``clip_contrast``);
+        # with the learned locator's probability near its centre when it ran (``locator``)
+        prior = LOCATOR_WEIGHT * math.log(max(c["locator"], LOCATOR_FLOOR)) if "locator" in c else 0.0
+        return (prior + c["edge_support"]
                 + 0.1 * min(math.log10(max(c["contrast"], c.get("clip_contrast", 0.0))), 3.0) / 3.0
                 + PICK_HIGHLIGHT_WEIGHT * max(c.get("highlight", 0.0), -3.0)
                 + PICK_RADIUS_WEIGHT * math.log(max(c["circle"][2], 1.0) / 20.0))

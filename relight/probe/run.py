@@ -41,6 +41,7 @@ class ProbeConfig:
     linear: bool = False
     refine: bool = True
     circle_tolerance_px: float = CIRCLE_TOLERANCE_PX
+    locator: bool = True          # detection: the learned locator's prior on the chrome pick
 
     def __post_init__(self):
         if not self.chrome and not self.diffuse:
@@ -75,8 +76,8 @@ class ProbeResult:
 
 def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mask_path: str | None = None,
                   refine: bool = True, exclude=(), candidates: list | None = None,
-                  tolerance_px: float = CIRCLE_TOLERANCE_PX, clip_level: float | None = None
-                  ) -> tuple[Sphere, np.ndarray | None, str, dict]:
+                  tolerance_px: float = CIRCLE_TOLERANCE_PX, clip_level: float | None = None,
+                  use_locator: bool = True) -> tuple[Sphere, np.ndarray | None, str, dict]:
     """The ``kind`` sphere in ``image`` from a mask, a circle, or automatic detection
     (``candidates``: those of :func:`relight.probe.detect.find_spheres`, if already found;
     the list is filled in place; ``clip_level``: the image's, for detection). Returns
@@ -89,7 +90,9 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
     (:func:`relight.probe.detect.constrained_refinement`); ``refinement`` reports it.
     A detected chrome sphere's ``refinement`` holds the detection's ``ambiguity`` (0-1) and
     the ``rival`` sphere when another circle scores within :data:`relight.probe.detect.DETECTION_MARGIN`
-    of the one chosen (:func:`relight.probe.detect.rival_sphere`)."""
+    of the one chosen (:func:`relight.probe.detect.rival_sphere`), and (``use_locator``) the
+    learned locator's circle and the probability it puts near the one chosen, which weighed
+    in the choice (:mod:`relight.probe.locator`)."""
     if mask_path is not None:
         mask = detect.load_mask(mask_path)
         return geom.sphere_from_mask(camera, mask), mask, "mask", {}
@@ -103,15 +106,25 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
         return sphere, None, how, report
     if candidates is None:
         candidates = []
+    report: dict = {}
+    centres = None
+    if kind == "chrome" and use_locator:   # the learned locator: a proposal and a prior on the pick
+        from relight.probe import locator
+        centres = locator.locate(image, clip_level)
+        report["locator_circle"] = centres.circle
     if not candidates:
-        candidates.extend(detect.find_spheres(image, camera, clip_level))
+        candidates.extend(detect.find_spheres(image, camera, clip_level, [centres.circle] if centres else ()))
+    if centres is not None:
+        for c in candidates:
+            c["locator"] = centres.mass_near(*c["circle"])
     found = detect.pick_sphere(candidates, kind, exclude)
+    if "locator" in found:
+        report["locator_probability"] = found["locator"]
     rival, margin = detect.rival_sphere(candidates, found, kind, exclude) if kind == "chrome" else (None, 0.0)
-    if rival is None or margin >= detect.DETECTION_MARGIN:
-        return found["sphere"], None, "detected", {}
-    # another circle scores nearly as well: the detection is ambiguous (see run_probe)
-    return found["sphere"], None, "detected", {"ambiguity": 1.0 - margin / detect.DETECTION_MARGIN,
-                                               "rival": rival["sphere"]}
+    if rival is not None and margin < detect.DETECTION_MARGIN:
+        # another circle scores nearly as well: the detection is ambiguous (see run_probe)
+        report.update(ambiguity=1.0 - margin / detect.DETECTION_MARGIN, rival=rival["sphere"])
+    return found["sphere"], None, "detected", report
 
 
 def run_probe(cfg: ProbeConfig) -> ProbeResult:
@@ -134,7 +147,8 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
             raise ProbeError(f"{cfg.chrome} is black")
         camera = cfg.camera(image.shape[1], image.shape[0])
         chrome_found = locate_sphere(image, camera, "chrome", cfg.chrome_circle, cfg.chrome_mask, cfg.refine,
-                                     candidates=candidates, tolerance_px=cfg.circle_tolerance_px, clip_level=clip)
+                                     candidates=candidates, tolerance_px=cfg.circle_tolerance_px, clip_level=clip,
+                                     use_locator=cfg.locator)
         chrome_circle = detect.outline_circle(camera, chrome_found[0])
         result.camera, result.chrome_image = camera, image
     d_dir = None
@@ -167,7 +181,10 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
         entry["chrome_circle"] = [round(v, 3) for v in chrome_circle]
         entry["chrome_found_by"] = found
         if found == "detected":
-            if refinement:
+            if "locator_circle" in refinement:
+                entry["locator"] = {"circle": [round(v, 2) for v in refinement["locator_circle"]],
+                                    "probability": round(refinement.get("locator_probability", 0.0), 4)}
+            if "rival" in refinement:
                 _detection_ambiguity(entry, result, hl, refinement, image, camera, clip, d_dir)
         elif refinement:
             entry["chrome_circle_refinement"] = refinement
@@ -327,7 +344,8 @@ def write_qa(path: str, result: ProbeResult, title: str = "") -> None:
         detection = f"  detection {b['detection_deg']:.2f}" if "detection_deg" in b else ""
         lines.append(f"error budget (deg, 1 sigma): circle {b['circle_deg']:.2f}  highlight {b['highlight_deg']:.2f}"
                      f"  camera model {b['camera_deg']:.2f}{detection}  -> total {b['total_deg']:.2f}"
-                     f"  [chrome {e['chrome_found_by']}]")
+                     f"  [chrome {e['chrome_found_by']}"
+                     + (f", locator p {e['locator']['probability']:.2f}" if "locator" in e else "") + "]")
     for i, text in enumerate(t for t in lines if t):
         cv2.putText(panel, text, (6, height + 18 + 20 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1,
                     cv2.LINE_AA)
