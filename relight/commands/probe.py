@@ -60,9 +60,6 @@ def add_commands(sub) -> None:
     p.set_defaults(func=cmd_probe)
 
 
-LOCATOR_DOUBT = 0.1     # the locator's probability at the chosen circle below which the CLI says so
-
-
 def check_circle_fits(option: str, circle, image: str) -> None:
     """Refuse (one line) a circle that cannot be a sphere's outline in ``image``: a radius
     over half the image diagonal (a circle that large shows no outline), or a circle that
@@ -136,11 +133,6 @@ def cmd_probe(args) -> int:
         print(f"note: another circle, ({cx:.1f}, {cy:.1f}) r {r:.1f}, looks nearly as much like the chrome sphere "
               f"(ambiguity {det['ambiguity']:.2f}; its light is {det['separation_deg']:.0f} deg away): "
               f"check the QA overlay or give --chrome-circle")
-    loc = entry.get("locator")
-    if loc and loc["probability"] < LOCATOR_DOUBT:
-        cx, cy, r = loc["circle"]
-        print(f"note: the learned sphere locator puts the chrome sphere elsewhere, ({cx:.1f}, {cy:.1f}) r {r:.1f} "
-              f"(probability {loc['probability']:.2f} at the circle chosen): check the QA overlay or give --chrome-circle")
     return 0
 
 
