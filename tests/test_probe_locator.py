@@ -128,3 +128,29 @@ def test_an_extra_proposal_adds_a_candidate_only_where_the_hough_circles_left_no
     alone = detect.find_spheres(image, cam, 1.0)
     assert alone and [c["circle"] for c in detect.find_spheres(image, cam, 1.0, [near])] == \
         [c["circle"] for c in alone]
+
+
+def test_the_locator_judges_only_circles_within_its_training_radii():
+    # trained on spheres of at most 15% of the image side, 10% over that it still judges
+    assert locator.judges(0.16 * 512, 512, 340)
+    assert not locator.judges(0.17 * 512, 340, 512)
+
+
+PSM = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "psm_spheres")
+
+
+@needs_weights
+@pytest.mark.skipif(not os.path.isdir(PSM), reason="shared/data/psm_spheres not present")
+def test_a_ball_filling_the_photograph_is_not_judged_and_is_still_found():
+    # psm_spheres' chrome ball (r ~119 px, 23% of the 512 px side: larger than any training
+    # sphere): the locator, which puts its centre on a small bright thing instead, gives it
+    # no prior, so the detection is the rules' (the mask's circle, within 3 px)
+    from relight.probe.detect import load_mask
+    from relight.probe.geometry import Camera, sphere_from_mask
+    from relight.probe.run import ProbeConfig, run_probe
+    entry = run_probe(ProbeConfig(chrome=os.path.join(PSM, "chrome.0.png"))).entry
+    mask = load_mask(os.path.join(PSM, "chrome.mask.png"))
+    truth = detect.outline_circle(Camera(mask.shape[1], mask.shape[0], None),
+                                  sphere_from_mask(Camera(mask.shape[1], mask.shape[0], None), mask))
+    assert entry["locator"]["probability"] is None
+    assert math.dist(entry["chrome_circle"][:2], truth[:2]) < 3.0 and abs(entry["chrome_circle"][2] - truth[2]) < 3.0

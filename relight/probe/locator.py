@@ -37,6 +37,7 @@ __all__ = [
     "CentreMap",
     "build_net",
     "camera_pipeline",
+    "judges",
     "load_locator",
     "locate",
     "network_input",
@@ -45,6 +46,9 @@ __all__ = [
 
 SIZE = 256          # the network's input: the longer side scaled to this many pixels
 STRIDE = 8          # one output cell per 8 x 8 input pixels
+TRAINED_RADIUS_FRACTION = 0.15   # the training spheres' radii: at most this share of the image side ...
+JUDGED_RADIUS_FRACTION = 1.1 * TRAINED_RADIUS_FRACTION   # ... so circles larger than this (10% over it)
+                                 # it has no opinion on (a probe photograph's ball filling the frame)
 WEIGHTS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "models",
                        "probe_locator.safetensors")
 
@@ -115,6 +119,14 @@ class CentreMap:
         d2 = (self.centres[..., 0] - cx) ** 2 + (self.centres[..., 1] - cy) ** 2
         s = max(r / 6.0, 1.0)
         return float((self.prob * np.exp(-d2 / (2.0 * s * s))).sum())
+
+
+def judges(radius_px: float, width: int, height: int) -> bool:
+    """Whether the locator can speak for a circle of this radius: no larger than
+    :data:`JUDGED_RADIUS_FRACTION` of the image's longer side (it was trained on spheres
+    up to :data:`TRAINED_RADIUS_FRACTION`; on psm_spheres' ball, 23% of the side, it puts
+    its centre on small bright things instead)."""
+    return radius_px <= JUDGED_RADIUS_FRACTION * max(width, height)
 
 
 def locate(image: np.ndarray, clip_level: float | None, path: str = WEIGHTS) -> CentreMap:

@@ -114,9 +114,10 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
         report["locator_circle"] = centres.circle
     if not candidates:
         candidates.extend(detect.find_spheres(image, camera, clip_level, [centres.circle] if centres else ()))
-    if centres is not None:
+    if centres is not None:   # (circles larger than any it was trained on get no prior either way)
         for c in candidates:
-            c["locator"] = centres.mass_near(*c["circle"])
+            if locator.judges(c["circle"][2], camera.width, camera.height):
+                c["locator"] = centres.mass_near(*c["circle"])
     found = detect.pick_sphere(candidates, kind, exclude)
     if "locator" in found:
         report["locator_probability"] = found["locator"]
@@ -182,8 +183,9 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
         entry["chrome_found_by"] = found
         if found == "detected":
             if "locator_circle" in refinement:
+                p = refinement.get("locator_probability")   # None: a circle too large for it to judge
                 entry["locator"] = {"circle": [round(v, 2) for v in refinement["locator_circle"]],
-                                    "probability": round(refinement.get("locator_probability", 0.0), 4)}
+                                    "probability": None if p is None else round(p, 4)}
             if "rival" in refinement:
                 _detection_ambiguity(entry, result, hl, refinement, image, camera, clip, d_dir)
         elif refinement:
@@ -345,7 +347,8 @@ def write_qa(path: str, result: ProbeResult, title: str = "") -> None:
         lines.append(f"error budget (deg, 1 sigma): circle {b['circle_deg']:.2f}  highlight {b['highlight_deg']:.2f}"
                      f"  camera model {b['camera_deg']:.2f}{detection}  -> total {b['total_deg']:.2f}"
                      f"  [chrome {e['chrome_found_by']}"
-                     + (f", locator p {e['locator']['probability']:.2f}" if "locator" in e else "") + "]")
+                     + (f", locator p {e['locator']['probability']:.2f}"
+                        if e.get("locator", {}).get("probability") is not None else "") + "]")
     for i, text in enumerate(t for t in lines if t):
         cv2.putText(panel, text, (6, height + 18 + 20 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1,
                     cv2.LINE_AA)
