@@ -110,24 +110,18 @@ def test_missing_or_foreign_weights_are_one_line_errors(tmp_path):
         locator.load_locator(str(bad))
 
 
-def test_an_extra_proposal_adds_a_candidate_only_where_the_hough_circles_left_none(monkeypatch):
+def test_an_extra_proposal_finds_a_sphere_no_hough_circle_proposed(monkeypatch):
     from relight.probe import geometry as pg
     from test_probe_hard import FOV_DEG, H, W, _quantise, _render, _sphere_at
     cam = pg.Camera.from_fov(W, H, FOV_DEG)
     sphere = _sphere_at(cam, 80.0, 62.0, 5.0)
     cx, cy, r = detect.outline_circle(cam, sphere)
     image = _quantise(_render(cam, sphere, np.array([0.3, 0.4, 0.87])))
-    near = (cx + 1.5, cy - 1.0, 1.1 * r)            # as the locator gives it: 1-2 px off
-    # no Hough circle: the proposal alone finds the sphere, refined onto its outline
     monkeypatch.setattr(detect, "hough_circles", lambda img, *args: [])
     assert detect.find_spheres(image, cam, 1.0) == []
-    found = detect.find_spheres(image, cam, 1.0, [near])
+    # as the locator gives it, 1-2 px off and 10% large: refined onto the outline
+    found = detect.find_spheres(image, cam, 1.0, [(cx + 1.5, cy - 1.0, 1.1 * r)])
     assert any(math.dist(c["circle"][:2], (cx, cy)) < 0.5 and abs(c["circle"][2] - r) < 0.5 for c in found)
-    # the Hough circle there: the proposal beside it changes no candidate
-    monkeypatch.setattr(detect, "hough_circles", lambda img, *args: [(cx - 0.8, cy + 0.6, 0.95 * r)])
-    alone = detect.find_spheres(image, cam, 1.0)
-    assert alone and [c["circle"] for c in detect.find_spheres(image, cam, 1.0, [near])] == \
-        [c["circle"] for c in alone]
 
 
 def test_the_locator_judges_only_circles_within_its_training_radii():

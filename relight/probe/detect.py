@@ -501,9 +501,8 @@ def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = N
     integer file: a clipped highlight's contrast is then read as a lower bound,
     :func:`hough_circles`, :func:`sphere_features`; None for a linear HDR one that does not
     clip, which is searched as a camera would have exposed it, :func:`exposed_like_a_camera`).
-    ``extra``: circles ``(cx, cy, r)`` proposed after the Hough circles (the learned
-    locator's, :mod:`relight.probe.locator`), screened and refined as they are where
-    those left no candidate near them."""
+    ``extra``: circles ``(cx, cy, r)`` proposed before the Hough circles (the learned
+    locator's, :mod:`relight.probe.locator`), screened and refined as they are."""
     if clip_level is None:   # linear HDR: look for spheres in the image a camera would have taken
         image, clip_level = exposed_like_a_camera(image), 1.0
     smoothed = _edge_image(image)
@@ -523,17 +522,13 @@ def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = N
     def screen(c):
         found = screened_at(*c)
         return -1 if found is None else found[0]
-    hough = list(hough_circles(image, clip_level, screen))
-    proposals = hough + [tuple(float(v) for v in c) for c in extra]
-    for k, (cx, cy, r) in enumerate(proposals):
+    # an extra proposal comes first: Hough circles refined to the same place then add
+    # nothing (proposed after them, or only where they left no candidate, it found fewer
+    # spheres on the held-out sets: docs/probe.md, twelfth round)
+    proposals = [tuple(float(v) for v in c) for c in extra] + list(hough_circles(image, clip_level, screen))
+    for cx, cy, r in proposals:
         # Hough circles near one already refined to the same place add nothing
         if any(math.hypot(cx - c[0], cy - c[1]) < 0.05 * r and abs(r - c[2]) < 0.05 * r for c in refined):
-            continue
-        # an extra proposal only where the Hough circles left no candidate (its centre a
-        # third of its radius away from every one): refined from a circle 1-2 px off, an
-        # outline the Hough circles found lands elsewhere in its edges' local minima
-        # (held-out 1: 14 of 60 outlines moved, two by 3-5 deg, median 2.58 -> 2.96)
-        if k >= len(hough) and any(math.hypot(cx - c["circle"][0], cy - c["circle"][1]) < r / 3.0 for c in out):
             continue
         refined.append((cx, cy, r))
         # cheap screen: is the strongest nearby edge on this circle often enough? The
