@@ -38,7 +38,7 @@ def add_commands(sub) -> None:
                    f"(default {CIRCLE_TOLERANCE_PX}; 0: use the circle exactly as given)")
     p.add_argument("--no-locator", dest="locator", action="store_false",
                    help="automatic detection by the hand-written rules alone, without the learned "
-                   "sphere locator's prior on which circle is the chrome sphere")
+                   "sphere locator (its proposed circle, and its prior on which circle is the chrome sphere)")
     p.add_argument("--folder", help="batch: a folder of photographs, measured as listed by --circles")
     p.add_argument("--circles", help="batch: CSV with a header row: image (file in --folder), optional "
                    "chrome_cx,chrome_cy,chrome_r (empty: found automatically), diffuse_cx,diffuse_cy,"
