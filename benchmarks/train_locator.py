@@ -28,10 +28,10 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 def load_scene(json_path: str, renderer: str, linear: bool = False
-               ) -> tuple[np.ndarray, np.ndarray, dict] | None:
-    """The scene's 8-bit render as the locator sees it (:func:`relight.probe.locator.network_input`)
-    and its chrome circle in those pixels; None when the render is missing. ``linear``: its
-    linear EXR instead, area-averaged to the same size (``(S, S, 3)``, for the pipeline)."""
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None] | None:
+    """The scene's 8-bit render as the locator sees it (:func:`relight.probe.locator.network_input`),
+    its chrome circle in those pixels and (``linear``) its linear EXR resized alike
+    (``(S, S, 3)``, for the camera pipeline; else None); None when the render is missing."""
     import cv2
 
     from relight.imageio import load_image
@@ -40,17 +40,17 @@ def load_scene(json_path: str, renderer: str, linear: bool = False
     if not os.path.exists(path):
         return None
     with open(json_path) as f:
-        truth = json.load(f)["truth"]
-    codes = load_image(path)[0]
-    pixels, scale = network_input(codes)
-    circle = np.asarray(truth["chrome_circle"], np.float32) / scale
+        cx, cy, r = json.load(f)["truth"]["chrome_circle"]
+    pixels, (sx, sy) = network_input(load_image(path)[0])
+    circle = np.array([cx, cy, r], np.float32) / np.array([sx, sy, sx], np.float32)
+    exr = None
     if linear:
         from relight.imageio import read_exr
         exr = np.asarray(read_exr(json_path[:-5] + f".{renderer}.exr"), np.float32)
         h, w = pixels.shape[1:]
         how = cv2.INTER_NEAREST if w > exr.shape[1] else cv2.INTER_AREA
-        return cv2.resize(exr, (w, h), interpolation=how), circle, truth
-    return pixels, circle, truth
+        exr = cv2.resize(exr, (w, h), interpolation=how)
+    return pixels, circle, exr
 
 
 def evaluate(net_path: str, folder: str, probe: bool) -> None:
@@ -115,15 +115,13 @@ def main() -> None:
     path = args.load
     if args.train:
         paths = sorted(glob.glob(os.path.join(args.train, "probe*.json")))[:args.limit]
-        items = [(p, load_scene(p, "mitsuba")) for p in paths]
+        items = [(p, load_scene(p, "mitsuba", linear=args.augment > 0)) for p in paths]
         items = [(p, i) for p, i in items if i is not None]
         if not items:
             raise SystemExit(f"no Mitsuba renders of probe scenes in {args.train}")
         if len({i[0].shape for _, i in items}) > 1:
             raise SystemExit("training scenes must be square (one input size)")
-        linear = None
-        if args.augment > 0:
-            linear = np.stack([load_scene(p, "mitsuba", linear=True)[0] for p, _ in items])
+        linear = np.stack([i[2] for _, i in items]) if args.augment > 0 else None
         print(f"training on {len(items)} scenes", flush=True)
         t0 = time.time()
         net = locator.train(np.stack([i[0] for _, i in items]), np.stack([i[1] for _, i in items]), args.epochs,

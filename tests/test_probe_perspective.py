@@ -263,4 +263,5 @@ def test_cli_automatic_reports_the_locator_and_runs_without_it(small_render, tmp
     assert circles[0] == pytest.approx(circles[1], abs=0.25)
     loc = json.loads((tmp_path / "p0.json").read_text())["predictions"][0]["locator"]
     assert np.hypot(loc["circle"][0] - truth[0], loc["circle"][1] - truth[1]) < truth[2] / 3.0
-    assert loc["probability"] > 0.5
+    # it agrees with the choice: 0.66 here (a circle it does not favour gets under 0.01)
+    assert loc["probability"] > 0.2

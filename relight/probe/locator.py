@@ -85,11 +85,12 @@ def load_locator(path: str = WEIGHTS):
     return net.eval()
 
 
-def network_input(codes: np.ndarray) -> tuple[np.ndarray, float]:
+def network_input(codes: np.ndarray) -> tuple[np.ndarray, tuple[float, float]]:
     """``(H, W, 3)`` 8-bit sRGB codes scaled to 0-1 -> the network's ``(3, h, w)`` float32
     input (the longer side :data:`SIZE`, both sides multiples of :data:`STRIDE`; area
     averaged, or each pixel repeated when enlarged, as the training images were) and the
-    image pixels per input pixel."""
+    image pixels per input pixel across and down (they differ a little when a side is
+    rounded to the grid)."""
     import cv2
     h, w = codes.shape[:2]
     scale = max(h, w) / SIZE
@@ -97,18 +98,17 @@ def network_input(codes: np.ndarray) -> tuple[np.ndarray, float]:
     nw = max(STRIDE, int(round(w / scale / STRIDE)) * STRIDE)
     how = cv2.INTER_NEAREST if nw > w else cv2.INTER_AREA
     small = cv2.resize(np.asarray(codes, np.float32), (nw, nh), interpolation=how)
-    return np.ascontiguousarray(small.transpose(2, 0, 1)), w / nw
+    return np.ascontiguousarray(small.transpose(2, 0, 1)), (w / nw, h / nh)
 
 
 @dataclass(frozen=True)
 class CentreMap:
     """The locator's answer on one image: ``prob`` the probability that the chrome
     sphere's centre lies in each cell (sums to 1), ``centres`` ``(h, w, 2)`` where in the
-    image each cell puts it, ``circle`` the most likely circle ``(cx, cy, r)``, all in image
-    pixels (``scale`` image pixels per input pixel)."""
+    image each cell puts it, ``circle`` the most likely circle ``(cx, cy, r)``, in image
+    pixels."""
     prob: np.ndarray
     centres: np.ndarray
-    scale: float
     circle: tuple[float, float, float]
 
     def mass_near(self, cx: float, cy: float, r: float) -> float:
@@ -138,7 +138,7 @@ def locate(image: np.ndarray, clip_level: float | None, path: str = WEIGHTS) -> 
     from relight.probe.detect import exposed_like_a_camera
     img = exposed_like_a_camera(image) if clip_level is None else np.asarray(image) / clip_level
     codes = np.round(srgb_encode(np.clip(img, 0.0, 1.0)) * 255.0) / 255.0
-    x, scale = network_input(codes)
+    x, (sx, sy) = network_input(codes)
     net = load_locator(path)
     with torch.no_grad():
         out = net(torch.from_numpy(x[None])).numpy()[0].astype(np.float64)
@@ -146,37 +146,43 @@ def locate(image: np.ndarray, clip_level: float | None, path: str = WEIGHTS) -> 
     prob = np.exp(logit - logit.max())
     prob /= prob.sum()
     gy, gx = np.mgrid[0:logit.shape[0], 0:logit.shape[1]]
-    centres = np.stack([(gx + out[1]) * STRIDE * scale, (gy + out[2]) * STRIDE * scale], -1)
+    centres = np.stack([(gx + out[1]) * STRIDE * sx, (gy + out[2]) * STRIDE * sy], -1)
     y, x = np.unravel_index(int(np.argmax(logit)), logit.shape)
-    circle = (centres[y, x, 0], centres[y, x, 1], math.exp(out[3, y, x]) * STRIDE * scale)
-    return CentreMap(prob, centres, scale, tuple(float(v) for v in circle))
+    circle = (centres[y, x, 0], centres[y, x, 1], math.exp(out[3, y, x]) * STRIDE * sx)
+    return CentreMap(prob, centres, tuple(float(v) for v in circle))
 
 
 def camera_pipeline(linear: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """``(n, H, W, 3)`` linear renders -> ``(n, 3, H, W)`` 8-bit codes in 0-1 as a camera
-    might have written them, one draw per image of: an exposure of -2 to +2 stops,
-    Poisson-Gaussian noise (the ranges of :class:`relight.net.augment.PipelineAugment`), a
-    Gaussian blur of 0.05-1 px (one per batch), the sRGB curve or a gamma of 1.8-2.6.
+    might have written them, one draw per image of (the ranges of
+    :class:`relight.net.augment.PipelineAugment`): an exposure of -2 to +2 stops,
+    Poisson-Gaussian noise, a Gaussian blur of 0.05-1 px (one per batch), the sRGB curve or
+    a gamma of 1.8-2.6.
     Vectorised: the per-image pipeline of :mod:`relight.net.augment` costs more than the
     network's step here."""
     import torch
     from torch.nn import functional as F
+
+    from relight.colour import SRGB_LINEAR_KNEE
+    from relight.net.augment import PipelineAugment
+    ranges = PipelineAugment()          # the ranges of the photo pipeline, one source
     n = len(linear)
     x = torch.from_numpy(np.ascontiguousarray(linear.transpose(0, 3, 1, 2))).float()
-    x = x * torch.from_numpy(2.0 ** rng.uniform(-2, 2, (n, 1, 1, 1))).float()
-    a = torch.from_numpy(np.exp(rng.uniform(math.log(1e-4), math.log(1e-2), (n, 1, 1, 1)))).float()
-    b = torch.from_numpy(rng.uniform(0, 0.01, (n, 1, 1, 1)) ** 2).float()
+    x = x * torch.from_numpy(2.0 ** rng.uniform(*ranges.exposure_ev, (n, 1, 1, 1))).float()
+    a = torch.from_numpy(np.exp(rng.uniform(math.log(ranges.photon_a[0]), math.log(ranges.photon_a[1]), (n, 1, 1, 1)))).float()
+    b = torch.from_numpy(rng.uniform(*ranges.read_sigma, (n, 1, 1, 1)) ** 2).float()
     gen = torch.Generator().manual_seed(int(rng.integers(2 ** 31)))
     x = x.clamp(min=0) + torch.sqrt(a * x.clamp(min=0) + b) * torch.randn(x.shape, generator=gen)
-    sigma = float(rng.uniform(0.05, 1.0))
+    sigma = float(rng.uniform(max(ranges.blur_px[0], 0.05), ranges.blur_px[1]))
     t = torch.arange(-3, 4, dtype=torch.float32)
     k = torch.exp(-t ** 2 / (2 * sigma ** 2))
     k = (k / k.sum()).repeat(3, 1, 1, 1)
     x = F.conv2d(F.pad(x, (3, 3, 0, 0), mode="replicate"), k.reshape(3, 1, 1, 7), groups=3)
     x = F.conv2d(F.pad(x, (0, 0, 3, 3), mode="replicate"), k.reshape(3, 1, 7, 1), groups=3)
     x = x.clamp(0, 1)
-    srgb = torch.where(x <= 0.0031308, 12.92 * x, 1.055 * x.clamp(min=1e-8) ** (1 / 2.4) - 0.055)
-    gamma = x ** (1.0 / torch.from_numpy(rng.uniform(1.8, 2.6, (n, 1, 1, 1))).float())
+    # relight.colour.srgb_encode, on tensors (it is numpy's)
+    srgb = torch.where(x <= SRGB_LINEAR_KNEE, 12.92 * x, 1.055 * x.clamp(min=1e-8) ** (1 / 2.4) - 0.055)
+    gamma = x ** (1.0 / torch.from_numpy(rng.uniform(*ranges.gamma, (n, 1, 1, 1))).float())
     y = torch.where(torch.from_numpy(rng.random((n, 1, 1, 1)) < 0.5), srgb, gamma)
     return (torch.round(y.clamp(0, 1) * 255) / 255).numpy()
 
