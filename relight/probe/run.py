@@ -41,7 +41,7 @@ class ProbeConfig:
     linear: bool = False
     refine: bool = True
     circle_tolerance_px: float = CIRCLE_TOLERANCE_PX
-    locator: bool = True          # detection: the learned locator's prior on the chrome pick
+    locator: bool = True          # chrome detection: the learned locator's proposal and prior (relight.probe.locator)
 
     def __post_init__(self):
         if not self.chrome and not self.diffuse:
