@@ -110,6 +110,7 @@ def main() -> None:
         raise SystemExit(f"{args.save} exists (give --force to replace it)")
     import torch
 
+    from relight.net.augment import PipelineAugment   # the photo pipeline's ranges
     from relight.probe import locator
     torch.set_num_threads(2)
     path = args.load
@@ -125,7 +126,7 @@ def main() -> None:
         print(f"training on {len(items)} scenes", flush=True)
         t0 = time.time()
         net = locator.train(np.stack([i[0] for _, i in items]), np.stack([i[1] for _, i in items]), args.epochs,
-                            linear=linear, augment_p=args.augment,
+                            linear=linear, augment_p=args.augment, ranges=PipelineAugment(),
                             progress=lambda m: print(f"{m} ({time.time() - t0:.0f} s)", flush=True))
         if args.save:
             from relight.fileio import atomic_write

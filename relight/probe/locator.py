@@ -152,10 +152,11 @@ def locate(image: np.ndarray, clip_level: float | None, path: str = WEIGHTS) -> 
     return CentreMap(prob, centres, tuple(float(v) for v in circle))
 
 
-def camera_pipeline(linear: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+def camera_pipeline(linear: np.ndarray, rng: np.random.Generator, ranges) -> np.ndarray:
     """``(n, H, W, 3)`` linear renders -> ``(n, 3, H, W)`` 8-bit codes in 0-1 as a camera
-    might have written them, one draw per image of (the ranges of
-    :class:`relight.net.augment.PipelineAugment`): an exposure of -2 to +2 stops,
+    might have written them, one draw per image of (``ranges``: a
+    :class:`relight.net.augment.PipelineAugment`, given by the caller, as the probe stage does
+    not import the network stage; its defaults): an exposure of -2 to +2 stops,
     Poisson-Gaussian noise, a Gaussian blur of 0.05-1 px (one per batch), the sRGB curve or
     a gamma of 1.8-2.6.
     Vectorised: the per-image pipeline of :mod:`relight.net.augment` costs more than the
@@ -164,8 +165,6 @@ def camera_pipeline(linear: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     from torch.nn import functional as F
 
     from relight.colour import SRGB_LINEAR_KNEE
-    from relight.net.augment import PipelineAugment
-    ranges = PipelineAugment()          # the ranges of the photo pipeline, one source
     n = len(linear)
     x = torch.from_numpy(np.ascontiguousarray(linear.transpose(0, 3, 1, 2))).float()
     x = x * torch.from_numpy(2.0 ** rng.uniform(*ranges.exposure_ev, (n, 1, 1, 1))).float()
@@ -196,14 +195,16 @@ def _targets(circles: np.ndarray, cells: int):
 
 
 def train(images: np.ndarray, circles: np.ndarray, epochs: int, linear: np.ndarray | None = None,
-          augment_p: float = 0.0, seed: int = 0, batch: int = 32, progress=print):
+          augment_p: float = 0.0, ranges=None, seed: int = 0, batch: int = 32, progress=print):
     """Train the locator on ``(n, 3, S, S)`` 8-bit codes in 0-1 with their chrome circles
     ``(n, 3)`` in input pixels: cross-entropy of the centre's cell, L1 of its offset and log
     radius; AdamW, one-cycle rate 2e-3; left-right mirroring, an exposure gain of 0.6-1.4
-    on the codes, and (with ``augment_p``) :func:`camera_pipeline` drawn on that share of
-    the images from their ``linear`` renders ``(n, S, S, 3)``."""
+    on the codes, and (with ``augment_p``) :func:`camera_pipeline` of ``ranges`` drawn on
+    that share of the images from their ``linear`` renders ``(n, S, S, 3)``."""
     import torch
     from torch.nn import functional as F
+    if augment_p > 0 and (linear is None or ranges is None):
+        raise ValueError("augment_p > 0 needs the linear renders and the pipeline's ranges")
     net = build_net(seed)
     opt = torch.optim.AdamW(net.parameters(), 2e-3, weight_decay=1e-4)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, 2e-3, total_steps=epochs * math.ceil(len(images) / batch))
@@ -217,10 +218,10 @@ def train(images: np.ndarray, circles: np.ndarray, epochs: int, linear: np.ndarr
         for b in range(0, len(order), batch):
             sel = order[b:b + batch]
             x, c = images[sel].copy(), circles[sel].copy()
-            if augment_p > 0 and linear is not None:
+            if augment_p > 0:
                 pick = rng.random(len(sel)) < augment_p
                 if pick.any():
-                    x[pick] = camera_pipeline(linear[sel[pick]], rng)
+                    x[pick] = camera_pipeline(linear[sel[pick]], rng, ranges)
             flip = rng.random(len(sel)) < 0.5
             x[flip] = x[flip][..., ::-1]
             c[flip, 0] = size - c[flip, 0]
