@@ -56,12 +56,50 @@ def test_mass_near_weighs_each_cells_centre_by_a_gaussian_of_a_sixth_of_the_radi
     centres = np.zeros((4, 4, 2))
     prob[1, 2], centres[1, 2] = 0.7, (100.0, 50.0)
     prob[3, 0], centres[3, 0] = 0.3, (160.0, 50.0)
-    cmap = locator.CentreMap(prob, centres, (100.0, 50.0, 30.0))
+    cmap = locator.CentreMap(prob, centres, np.full((4, 4), 30.0), (100.0, 50.0, 30.0))
     assert cmap.mass_near(100.0, 50.0, 30.0) == pytest.approx(0.7 + 0.3 * math.exp(-60.0 ** 2 / 50.0))
     # a third of the radius away: exp(-(r/3)^2 / (2 (r/6)^2)) = exp(-2)
     assert cmap.mass_near(100.0, 40.0, 30.0) == pytest.approx(0.7 * math.exp(-2.0), rel=1e-3)
     assert cmap.mass_near(130.0, 50.0, 30.0) == pytest.approx(math.exp(-18.0), abs=1e-6)
     assert cmap.mass_near(100.0, 50.0, 1.0) == pytest.approx(0.7)   # s at least 1 px
+
+
+def test_radius_near_is_the_weighted_geometric_mean_and_speaks_only_where_the_mass_is():
+    prob, centres, radii = np.zeros((4, 4)), np.zeros((4, 4, 2)), np.full((4, 4), 99.0)
+    prob[1, 2], centres[1, 2], radii[1, 2] = 0.6, (100.0, 50.0), 10.0
+    prob[1, 3], centres[1, 3], radii[1, 3] = 0.3, (103.0, 50.0), 40.0
+    prob[3, 0], centres[3, 0], radii[3, 0] = 0.1, (300.0, 50.0), 20.0
+    cmap = locator.CentreMap(prob, centres, radii, (100.0, 50.0, 10.0))
+    w1, w2 = 0.6, 0.3 * math.exp(-9.0 / (2 * 2.0 ** 2))       # r = 12: s = 2 px
+    radius, mass = cmap.radius_near(100.0, 50.0, 12.0)
+    assert mass == pytest.approx(w1 + w2)
+    assert radius == pytest.approx(math.exp((w1 * math.log(10.0) + w2 * math.log(40.0)) / (w1 + w2)))
+    assert cmap.radius_bound(100.0, 50.0, 12.0, 256, 256) == pytest.approx(locator.RADIUS_BOUND * radius)
+    # a cell of 0.1 alone speaks (RADIUS_MASS 0.05); none where it puts under RADIUS_MASS,
+    # nor on a circle larger than it judges
+    assert cmap.radius_bound(300.0, 50.0, 12.0, 512, 512) == pytest.approx(locator.RADIUS_BOUND * 20.0)
+    assert cmap.radius_bound(200.0, 50.0, 12.0, 256, 256) is None
+    assert cmap.radius_bound(100.0, 50.0, 0.2 * 256, 256, 256) is None
+
+
+def test_the_largest_nested_outline_within_the_locators_bound_is_kept(monkeypatch):
+    # a chrome candidate (r 12) and two larger outlines grown around it (r 16, 22: its
+    # contact shadow, a lit patch): the rules keep the outermost; with the locator's bound
+    # the largest within it, the candidate's own when none is
+    def cand(r, support=0.5):
+        return {"sphere": r, "circle": (100.0, 100.0, r), "edge_support": support, "chrome": True}
+    grown = {12.0: [cand(16.0)], 16.0: [cand(22.0)], 22.0: []}
+    monkeypatch.setattr(detect, "_grow_once", lambda image, camera, c, smoothed: grown[c["circle"][2]])
+    monkeypatch.setattr(detect, "outer_rim_fit", lambda smoothed, camera, sphere: sphere)
+    pick = lambda bound: detect._outermost_outline(None, None, cand(12.0), None, None, bound)["circle"][2]
+    assert pick(None) == 22.0
+    assert pick(15.0) == 12.0 and pick(16.0) == 16.0 and pick(21.0) == 16.0 and pick(30.0) == 22.0
+    assert pick(10.0) == 12.0
+    # and a circle inside a better supported one stays when the bound lies between them
+    inner, outer = cand(12.0, 0.5), cand(18.0, 0.6)
+    assert detect._drop_inner_circles([inner, outer]) == [outer]
+    assert len(detect._drop_inner_circles([{**inner, "radius_bound": 15.0}, outer])) == 2
+    assert detect._drop_inner_circles([{**inner, "radius_bound": 20.0}, outer]) == [outer]
 
 
 def _chrome(circle, support, locator_mass=None):

@@ -181,6 +181,33 @@ def test_cli_circles_given_with_qa_overlay(small_render, tmp_path):
     assert not list(tmp_path.glob("*.tmp*"))
 
 
+def test_unlit_gray_sphere_falls_back_to_the_chrome_sphere(small_render, tmp_path, capsys):
+    """A gray sphere with no lit side left (painted one flat gray: no pixel between the
+    fit's lit fractions of its peak) cannot be measured; with a chrome sphere the direction
+    is then the chrome sphere's, said so on the command line and in the entry; alone it is
+    a one-line error."""
+    import cv2
+    scene, path = small_render
+    image = cv2.imread(path)
+    cx, cy, r = scene.circle("gray")
+    cv2.circle(image, (round(cx), round(cy)), round(r + 2), (90, 90, 90), -1)
+    painted = tmp_path / "unlit.png"
+    cv2.imwrite(str(painted), image)
+    circles = [",".join(f"{v:.2f}" for v in scene.circle(which)) for which in ("chrome", "gray")]
+    common = ["--fov", str(scene.fov_deg), "--diffuse", str(painted), "--diffuse-circle", circles[1]]
+    out = tmp_path / "p.json"
+    assert main(["probe", "--chrome", str(painted), "--chrome-circle", circles[0], *common,
+                 "--out", str(out)]) == 0
+    entry = json.loads(out.read_text())["predictions"][0]
+    assert "lit pixels" in entry["diffuse_skipped"] and entry["method"] == "chrome"
+    assert "diffuse_to_light_camera" not in entry
+    assert _angle(entry["to_light_camera"], scene.to_light) < RENDER_DIR_TOL_DEG
+    assert "note: the diffuse sphere was not measured" in capsys.readouterr().out
+    alone = tmp_path / "alone.json"
+    assert _run(["probe", *common, "--out", str(alone)]) == 2
+    assert _one_error_line(capsys) and not alone.exists()
+
+
 def test_linear_16_bit_png(tmp_path):
     import cv2
     cam = pg.Camera.from_fov(W, H, FOV_DEG)

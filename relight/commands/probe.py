@@ -127,6 +127,9 @@ def cmd_probe(args) -> int:
     print(f"{ident}: to_light_camera ({d[0]:+.3f}, {d[1]:+.3f}, {d[2]:+.3f}), pan_rel {entry['pan_deg']:.1f} deg, "
           f"tilt {entry['tilt_deg']:.1f} deg, rgb ({rgb[0]:.3f}, {rgb[1]:.3f}, {rgb[2]:.3f}) "
           f"[{entry['method']}{quality}] -> {args.out}")
+    if "diffuse_skipped" in entry:
+        print(f"note: the diffuse sphere was not measured ({entry['diffuse_skipped']}): the direction is the "
+              f"chrome sphere's alone and the colour white")
     if "detection" in entry:
         det = entry["detection"]
         cx, cy, r = det["alternative_circle"]

@@ -77,6 +77,8 @@ LOCATOR_FLOOR = 0.01           # centre (relight.probe.locator), that probabilit
 LOCATOR_ADMIT = 0.5            # a circle neither chrome nor diffuse by the rules is a chrome candidate too
                                # when the locator puts this much probability near its centre
 RADIUS_HYPOTHESES = (1.0, 0.85, 1.15)  # a Hough circle's radius is often off on a chrome sphere's faint rim
+PROPOSAL_RADIUS_HYPOTHESES = (1.0, 0.85, 1.15, 1.3)  # an extra proposal's (the learned locator's: the true
+                                                     # radius is 0.86-1.45 times its, locator.RADIUS_BOUND)
 CHROME_MIN_CONTRAST = 4.0      # chrome: brightest / median sphere pixel at least this,
 CHROME_MIN_CLIPPED_CONTRAST = 2.0  # ... or, when its brightest pixel clips (the contrast then is only a lower
                                # bound: a mirror of a bright room reads 1 / 0.32 = 3.1 at most in 8-bit), the
@@ -492,7 +494,8 @@ def exposed_like_a_camera(image: np.ndarray) -> np.ndarray:
     return np.clip(np.asarray(image, np.float64) * camera_exposure(image), 0.0, 1.0)
 
 
-def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = None, extra=()) -> list[dict]:
+def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = None, extra=(),
+                 radius_bound=None) -> list[dict]:
     """Refined sphere candidates with their features: ``sphere``, ``edge_support``,
     ``contrast``, ``residual``, ``chrome`` and ``diffuse`` (bool), best supported first.
     Of candidates of one kind and similar radius within half a radius of each other the
@@ -502,7 +505,11 @@ def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = N
     :func:`hough_circles`, :func:`sphere_features`; None for a linear HDR one that does not
     clip, which is searched as a camera would have exposed it, :func:`exposed_like_a_camera`).
     ``extra``: circles ``(cx, cy, r)`` proposed before the Hough circles (the learned
-    locator's, :mod:`relight.probe.locator`), screened and refined as they are."""
+    locator's, :mod:`relight.probe.locator`), screened and refined as they are.
+    ``radius_bound``: ``(cx, cy, r) -> float | None``, the largest radius a chrome sphere
+    whose circle is found at ``(cx, cy, r)`` likely has (the learned locator's,
+    :meth:`relight.probe.locator.CentreMap.radius_bound`; None: no opinion), which chooses
+    among its nested outlines (:func:`_outermost_outline`, :func:`_drop_inner_circles`)."""
     if clip_level is None:   # linear HDR: look for spheres in the image a camera would have taken
         image, clip_level = exposed_like_a_camera(image), 1.0
     smoothed = _edge_image(image)
@@ -525,8 +532,9 @@ def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = N
     # an extra proposal comes first: Hough circles refined to the same place then add
     # nothing (proposed after them, or only where they left no candidate, it found fewer
     # spheres on the held-out sets: docs/probe.md, twelfth round)
-    proposals = [tuple(float(v) for v in c) for c in extra] + list(hough_circles(image, clip_level, screen))
-    for cx, cy, r in proposals:
+    proposals = ([(*(float(v) for v in c), PROPOSAL_RADIUS_HYPOTHESES) for c in extra]
+                 + [(*c, RADIUS_HYPOTHESES) for c in hough_circles(image, clip_level, screen)])
+    for cx, cy, r, hypotheses in proposals:
         # Hough circles near one already refined to the same place add nothing
         if any(math.hypot(cx - c[0], cy - c[1]) < 0.05 * r and abs(r - c[2]) < 0.05 * r for c in refined):
             continue
@@ -536,7 +544,7 @@ def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = N
         # sphere's rim is faint where it mirrors its surroundings, so the proposed radius is
         # often off); those screening well enough are refined, the best supported stays
         screened = []
-        for k in RADIUS_HYPOTHESES:
+        for k in hypotheses:
             found = screened_at(cx, cy, r * k)
             if found is not None:
                 screened.append((*found, r * k))
@@ -561,19 +569,33 @@ def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = N
             f = sphere_features(image, camera, sphere, clip_level)
             out = _merge_candidate(out, {"sphere": sphere, "circle": circle, "edge_support": support, **f,
                                          "chrome": is_chrome(f), "diffuse": is_diffuse(f)})
-    out = [_outermost_outline(image, camera, c, smoothed, clip_level) if c["chrome"] else c for c in out]
+    for c in out:     # the largest radius the learned locator allows a chrome sphere there, if any
+        c["radius_bound"] = radius_bound(*c["circle"]) if radius_bound and c["chrome"] else None
+    out = [{**_outermost_outline(image, camera, c, smoothed, clip_level, c["radius_bound"]),
+            "radius_bound": c["radius_bound"]} if c["chrome"] else c for c in out]
     for c in out:     # does its brightest spot look like a small light's highlight?
         c["highlight"] = highlight_likelihood(image, camera, c["sphere"]) if c["chrome"] else -10.0
-    # a circle inside a better supported one is a highlight or a reflection on that sphere
-    # (mostly inside: the smaller circle reaches at most 10% of the larger radius beyond it,
-    # and is not clearly better supported)
-    out = [c for c in out if not any(
-        o is not c and c["circle"][2] < o["circle"][2]
-        and math.hypot(c["circle"][0] - o["circle"][0], c["circle"][1] - o["circle"][1])
-        + c["circle"][2] < o["circle"][2] * 1.1 and o["edge_support"] >= c["edge_support"] - 0.02 for o in out)]
+    out = _drop_inner_circles(out)
     out = _drop_clipped_surroundings(out)
     out.sort(key=lambda c: -c["edge_support"])
     return out
+
+
+def _drop_inner_circles(out: list[dict]) -> list[dict]:
+    """``out`` without the circles inside a better supported one: a highlight or a
+    reflection on that sphere (mostly inside: the smaller circle reaches at most 10% of the
+    larger radius beyond it, and is not clearly better supported, by 0.02); unless it is a
+    chrome circle within the largest radius the learned locator allows there
+    (``radius_bound``) and the larger one is not: that is the mirror's surroundings, its
+    contact shadow or a lit patch beside it."""
+    def too_large(c, o):
+        bound = c.get("radius_bound")
+        return bound is not None and c["circle"][2] <= bound < o["circle"][2]
+    return [c for c in out if not any(
+        o is not c and c["circle"][2] < o["circle"][2]
+        and math.hypot(c["circle"][0] - o["circle"][0], c["circle"][1] - o["circle"][1])
+        + c["circle"][2] < o["circle"][2] * 1.1 and o["edge_support"] >= c["edge_support"] - 0.02
+        and not too_large(c, o) for o in out)]
 
 
 def _drop_clipped_surroundings(out: list[dict]) -> list[dict]:
@@ -615,7 +637,7 @@ def _merge_candidate(out: list[dict], cand: dict) -> list[dict]:
 
 
 def _outermost_outline(image: np.ndarray, camera: Camera, cand: dict, smoothed: np.ndarray,
-                       clip_level: float | None = None) -> dict:
+                       clip_level: float | None = None, bound: float | None = None) -> dict:
     """A chrome candidate's outline is the outermost circular edge around it: a mirror
     sphere's reflections (the horizon of a floor, a window, a bright wall) draw smaller,
     often stronger, near-concentric circles inside it, and its rim is faint where it
@@ -625,15 +647,26 @@ def _outermost_outline(image: np.ndarray, camera: Camera, cand: dict, smoothed: 
     support (the strongest edge within half the gap to the inner circle) reaches
     :data:`GROW_MIN_SUPPORT_RATIO` of the candidate's (and :data:`MIN_EDGE_SUPPORT`),
     which contains it and is still chrome, replaces it, and the search goes on from
-    there (at most :data:`GROW_ROUNDS` times)."""
-    best = cand
+    there (at most :data:`GROW_ROUNDS` times).
+
+    With a ``bound`` (the largest radius the learned locator allows there) the outline is
+    the largest of all those found (the candidate's, and every larger one that passed)
+    within it, the candidate's when none is: outermost is sometimes too far, the mirror's
+    own surroundings (a contact shadow, a lit patch beside it) drawing a larger circle
+    still, the commonest wrong detection left (docs/probe.md, thirteenth round)."""
+    chain = [cand]
     for _ in range(GROW_ROUNDS):
-        grown = _grow_once(image, camera, best, smoothed)
-        if grown is best:
+        grown = _grow_once(image, camera, chain[-1], smoothed)
+        if not grown:
             break
-        best = grown
+        chain += grown
+    if bound is None:
+        best = chain[-1]
+    else:
+        best = ([cand] + [c for c in chain[1:] if c["circle"][2] <= bound])[-1]
     sphere = outer_rim_fit(smoothed, camera, best["sphere"])
-    if sphere is not best["sphere"]:
+    if sphere is not best["sphere"] and (bound is None or outline_circle(camera, sphere)[2] <= max(
+            bound, best["circle"][2])):
         f = sphere_features(image, camera, sphere, clip_level)
         if is_chrome(f):
             best = {**best, **f, "sphere": sphere, "circle": outline_circle(camera, sphere), "chrome": True,
@@ -689,15 +722,16 @@ def outer_rim_fit(smoothed: np.ndarray, camera: Camera, sphere: Sphere) -> Spher
     return fitted
 
 
-def _grow_once(image: np.ndarray, camera: Camera, cand: dict, smoothed: np.ndarray) -> dict:
-    """One round of :func:`_outermost_outline`: the largest larger outline around ``cand``, or ``cand``.
+def _grow_once(image: np.ndarray, camera: Camera, cand: dict, smoothed: np.ndarray) -> list[dict]:
+    """One round of :func:`_outermost_outline`: the larger outlines around ``cand`` that pass,
+    smallest first (each at least 8% larger than the one before; empty when none does).
     A grown outline must pass the chrome test without the clipped highlight's allowance
     (:data:`CHROME_MIN_CLIPPED_CONTRAST`): its edge evidence is weaker (a narrow band), and
     any circle drawn around a clipped highlight on a bright background would pass it."""
     cx, cy, r = cand["circle"]
-    best = cand
+    grown: list[dict] = []
     for k in (*GROW_RADII, *GROW_FINE_RADII):
-        if k in GROW_FINE_RADII and best is not cand:
+        if k in GROW_FINE_RADII and grown:
             break
         try:
             guess = sphere_from_circle(camera, cx, cy, r * k)
@@ -705,7 +739,8 @@ def _grow_once(image: np.ndarray, camera: Camera, cand: dict, smoothed: np.ndarr
         except ProbeError:
             continue
         c2 = outline_circle(camera, sphere)
-        if not (c2[2] > best["circle"][2] * 1.08 and math.hypot(c2[0] - cx, c2[1] - cy) + r <= c2[2] * 1.05):
+        largest = grown[-1]["circle"][2] if grown else r
+        if not (c2[2] > largest * 1.08 and math.hypot(c2[0] - cx, c2[1] - cy) + r <= c2[2] * 1.05):
             continue
         # its support: the strongest edge in a band reaching halfway to the inner circle
         # (the inner one may well be stronger: it is a reflection of something bright)
@@ -715,9 +750,9 @@ def _grow_once(image: np.ndarray, camera: Camera, cand: dict, smoothed: np.ndarr
             continue
         f = sphere_features(image, camera, sphere)
         if is_chrome(f):   # the pair's evidence: the inner circle's support stays
-            best = {"sphere": sphere, "circle": c2, "edge_support": cand["edge_support"], **f, "chrome": True,
-                    "diffuse": is_diffuse(f)}
-    return best
+            grown.append({"sphere": sphere, "circle": c2, "edge_support": cand["edge_support"], **f,
+                          "chrome": True, "diffuse": is_diffuse(f)})
+    return grown
 
 
 def is_chrome(f: dict) -> bool:

@@ -49,6 +49,10 @@ STRIDE = 8          # one output cell per 8 x 8 input pixels
 TRAINED_RADIUS_FRACTION = 0.15   # the training spheres' radii: at most this share of the image side ...
 JUDGED_RADIUS_FRACTION = 1.1 * TRAINED_RADIUS_FRACTION   # ... so circles larger than this (10% over it)
                                  # it has no opinion on (a probe photograph's ball filling the frame)
+RADIUS_MASS = 0.05   # where it puts at least 5% of its probability, a sphere's radius is at most
+RADIUS_BOUND = 1.25  # 1.25 times the radius it gives there (on the 220 Cycles scenes of the probe
+                     # sets, where it put that much at the true centre, the true radius was 0.86-1.45
+                     # times its, median 1.01, 97.5th percentile 1.25; docs/probe.md, thirteenth round)
 WEIGHTS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "models",
                        "probe_locator.safetensors")
 
@@ -105,20 +109,45 @@ def network_input(codes: np.ndarray) -> tuple[np.ndarray, tuple[float, float]]:
 class CentreMap:
     """The locator's answer on one image: ``prob`` the probability that the chrome
     sphere's centre lies in each cell (sums to 1), ``centres`` ``(h, w, 2)`` where in the
-    image each cell puts it, ``circle`` the most likely circle ``(cx, cy, r)``, in image
-    pixels."""
+    image each cell puts it, ``radii`` ``(h, w)`` the radius each cell gives it, ``circle``
+    the most likely circle ``(cx, cy, r)``, in image pixels."""
     prob: np.ndarray
     centres: np.ndarray
+    radii: np.ndarray
     circle: tuple[float, float, float]
+
+    def _near(self, cx: float, cy: float, r: float) -> np.ndarray:
+        d2 = (self.centres[..., 0] - cx) ** 2 + (self.centres[..., 1] - cy) ** 2
+        s = max(r / 6.0, 1.0)
+        return self.prob * np.exp(-d2 / (2.0 * s * s))
 
     def mass_near(self, cx: float, cy: float, r: float) -> float:
         """How much of the probability puts the centre at ``(cx, cy)``, for a sphere of radius
         ``r``: each cell's probability weighted by ``exp(-d^2 / 2 s^2)``, ``d`` the distance
         from its centre to ``(cx, cy)``, ``s`` a sixth of ``r`` (at least 1 px): 1 when all of
         it lies there, exp(-2) = 0.14 a third of the radius away (the benchmark's miss distance)."""
-        d2 = (self.centres[..., 0] - cx) ** 2 + (self.centres[..., 1] - cy) ** 2
-        s = max(r / 6.0, 1.0)
-        return float((self.prob * np.exp(-d2 / (2.0 * s * s))).sum())
+        return float(self._near(cx, cy, r).sum())
+
+    def radius_near(self, cx: float, cy: float, r: float) -> tuple[float, float]:
+        """The radius the locator gives a sphere centred at ``(cx, cy)`` (the geometric mean
+        of the cells' radii, weighted as in :meth:`mass_near`, ``r`` the radius that sets the
+        weighting) and that weighting's total, :meth:`mass_near` (the radius means little
+        where the locator puts little probability)."""
+        w = self._near(cx, cy, r)
+        total = float(w.sum())
+        if total <= 0.0:
+            return float("nan"), 0.0
+        return float(math.exp((w * np.log(self.radii)).sum() / total)), total
+
+    def radius_bound(self, cx: float, cy: float, r: float, width: int, height: int) -> float | None:
+        """The largest radius a chrome sphere centred at ``(cx, cy)`` likely has by the
+        locator (:data:`RADIUS_BOUND` times :meth:`radius_near`), for a circle of radius ``r``
+        it judges (:func:`judges`) and near which it puts at least :data:`RADIUS_MASS`;
+        otherwise None (no opinion)."""
+        if not judges(r, width, height):
+            return None
+        radius, mass = self.radius_near(cx, cy, r)
+        return RADIUS_BOUND * radius if mass >= RADIUS_MASS else None
 
 
 def judges(radius_px: float, width: int, height: int) -> bool:
@@ -148,8 +177,9 @@ def locate(image: np.ndarray, clip_level: float | None, path: str = WEIGHTS) -> 
     gy, gx = np.mgrid[0:logit.shape[0], 0:logit.shape[1]]
     centres = np.stack([(gx + out[1]) * STRIDE * sx, (gy + out[2]) * STRIDE * sy], -1)
     y, x = np.unravel_index(int(np.argmax(logit)), logit.shape)
-    circle = (centres[y, x, 0], centres[y, x, 1], math.exp(out[3, y, x]) * STRIDE * sx)
-    return CentreMap(prob, centres, tuple(float(v) for v in circle))
+    radii = np.exp(out[3]) * STRIDE * sx
+    circle = (centres[y, x, 0], centres[y, x, 1], radii[y, x])
+    return CentreMap(prob, centres, radii, tuple(float(v) for v in circle))
 
 
 def camera_pipeline(linear: np.ndarray, rng: np.random.Generator, ranges) -> np.ndarray:

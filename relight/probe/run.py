@@ -113,7 +113,10 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
         centres = locator.locate(image, clip_level)
         report["locator_circle"] = centres.circle
     if not candidates:
-        candidates.extend(detect.find_spheres(image, camera, clip_level, [centres.circle] if centres else ()))
+        bound = None if centres is None else (
+            lambda cx, cy, r: centres.radius_bound(cx, cy, r, camera.width, camera.height))
+        candidates.extend(detect.find_spheres(image, camera, clip_level, [centres.circle] if centres else (),
+                                              bound))
     if centres is not None:   # (circles larger than any it was trained on get no prior either way)
         for c in candidates:
             if locator.judges(c["circle"][2], camera.width, camera.height):
@@ -162,13 +165,21 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
                                                         cfg.diffuse_mask, cfg.refine, exclude,
                                                         candidates if same else None, cfg.circle_tolerance_px,
                                                         d_clip)
-        d_dir, rgb, info = geom.diffuse_light(image, camera, sphere, mask)
         entry["diffuse_circle"] = [round(v, 3) for v in detect.outline_circle(camera, sphere)]
         entry["diffuse_found_by"] = found
         if refinement:
             entry["diffuse_circle_refinement"] = refinement
-        entry["diffuse_to_light_camera"] = [round(float(v), 6) for v in d_dir]
-        entry["diffuse_fit"] = {k: round(v, 4) if isinstance(v, float) else v for k, v in info.items()}
+        try:
+            d_dir, rgb, info = geom.diffuse_light(image, camera, sphere, mask)
+        except ProbeError as exc:
+            if not cfg.chrome:
+                raise
+            # the chrome sphere alone still gives the direction (the light behind the gray
+            # sphere, or its lit side hidden): say so, and the colour stays white
+            entry["diffuse_skipped"] = str(exc)
+        else:
+            entry["diffuse_to_light_camera"] = [round(float(v), 6) for v in d_dir]
+            entry["diffuse_fit"] = {k: round(v, 4) if isinstance(v, float) else v for k, v in info.items()}
         result.diffuse_image, result.diffuse_sphere = image, sphere
         result.camera = result.camera or camera
     if cfg.chrome:
@@ -204,7 +215,7 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
         entry["image_encoding"] = how
         methods.append("chrome")
         result.chrome_sphere, result.highlight = sphere, hl
-    if cfg.diffuse:
+    if d_dir is not None:
         methods.append("diffuse")
         if direction is None:
             direction = d_dir
