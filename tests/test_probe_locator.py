@@ -181,6 +181,10 @@ def test_an_extra_proposal_finds_a_sphere_no_hough_circle_proposed(monkeypatch):
     # as the locator gives it, 1-2 px off and 10% large: refined onto the outline
     found = detect.find_spheres(image, cam, 1.0, [(cx + 1.5, cy - 1.0, 1.1 * r)])
     assert any(math.dist(c["circle"][:2], (cx, cy)) < 0.5 and abs(c["circle"][2] - r) < 0.5 for c in found)
+    # ... and as small as it gives it (the true radius up to 1.45 times its): tried at up to
+    # 1.3 times the radius proposed (PROPOSAL_RADIUS_HYPOTHESES), it still is
+    found = detect.find_spheres(image, cam, 1.0, [(cx + 1.0, cy - 1.0, r / 1.45)])
+    assert any(math.dist(c["circle"][:2], (cx, cy)) < 0.5 and abs(c["circle"][2] - r) < 0.5 for c in found)
 
 
 def test_the_locator_judges_only_circles_within_its_training_radii():

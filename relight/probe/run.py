@@ -115,8 +115,8 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
     if not candidates:
         bound = None if centres is None else (
             lambda cx, cy, r: centres.radius_bound(cx, cy, r, camera.width, camera.height))
-        candidates.extend(detect.find_spheres(image, camera, clip_level, [centres.circle] if centres else (),
-                                              bound))
+        candidates.extend(detect.find_spheres(image, camera, clip_level, extra=[centres.circle] if centres else (),
+                                              radius_bound=bound))
     if centres is not None:   # (circles larger than any it was trained on get no prior either way)
         for c in candidates:
             if locator.judges(c["circle"][2], camera.width, camera.height):
