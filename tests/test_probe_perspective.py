@@ -203,6 +203,18 @@ def test_unlit_gray_sphere_falls_back_to_the_chrome_sphere(small_render, tmp_pat
     assert "diffuse_to_light_camera" not in entry
     assert _angle(entry["to_light_camera"], scene.to_light) < RENDER_DIR_TOL_DEG
     assert "note: the diffuse sphere was not measured" in capsys.readouterr().out
+    # the same as a batch row: measured, and said so on its line
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    (folder / "unlit.png").write_bytes(painted.read_bytes())
+    table = tmp_path / "circles.csv"
+    table.write_text("image,chrome_cx,chrome_cy,chrome_r,diffuse_cx,diffuse_cy,diffuse_r\n"
+                     f"unlit.png,{circles[0]},{circles[1]}\n")
+    batch = tmp_path / "batch.json"
+    assert main(["probe", "--folder", str(folder), "--circles", str(table), "--fov", str(scene.fov_deg),
+                 "--out", str(batch)]) == 0
+    assert json.loads(batch.read_text())["predictions"][0]["method"] == "chrome"
+    assert "diffuse sphere not measured" in capsys.readouterr().out
     alone = tmp_path / "alone.json"
     assert _run(["probe", *common, "--out", str(alone)]) == 2
     assert _one_error_line(capsys) and not alone.exists()

@@ -170,6 +170,7 @@ def _cmd_batch(args) -> int:
     for e in entries:
         d = e["to_light_camera"]
         print(f"{e['id']}: to_light_camera ({d[0]:+.3f}, {d[1]:+.3f}, {d[2]:+.3f}) "
-              f"[{e['method']}, ~{e.get('quality_deg', float('nan')):.1f} deg]")
+              f"[{e['method']}, ~{e.get('quality_deg', float('nan')):.1f} deg]"
+              + (f" (diffuse sphere not measured: {e['diffuse_skipped']})" if "diffuse_skipped" in e else ""))
     print(f"{len(entries)} images -> {args.out}" + (f" (QA overlays in {args.qa})" if args.qa else ""))
     return 0

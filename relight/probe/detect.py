@@ -665,6 +665,8 @@ def _outermost_outline(image: np.ndarray, camera: Camera, cand: dict, smoothed: 
     else:
         best = ([cand] + [c for c in chain[1:] if c["circle"][2] <= bound])[-1]
     sphere = outer_rim_fit(smoothed, camera, best["sphere"])
+    # (the fit to the outermost edges moves the outline by at most 15%; not past the bound,
+    # unless the outline already lies beyond it)
     if sphere is not best["sphere"] and (bound is None or outline_circle(camera, sphere)[2] <= max(
             bound, best["circle"][2])):
         f = sphere_features(image, camera, sphere, clip_level)
