@@ -145,18 +145,23 @@ def test_shipped_locator_finds_the_chrome_sphere_in_fresh_renders():
     from relight.imageio import to_srgb8
     from relight.verify import probe_scenes as ps
     backend.init()
-    hits = 0
+    hits = radii = 0
     for seed in range(7000, 7006):
         d = ps.sample_room_scene(seed, res=128)
         linear = ps.render_room_mitsuba(d, spp=16)
         codes = to_srgb8(linear, detect.camera_exposure(linear, 0.02))   # the set's exposure: 2% clip
         image = srgb_decode(codes.astype(np.float64) / 255.0)
-        cx, cy, r = locator.locate(image, 1.0).circle
+        cmap = locator.locate(image, 1.0)
+        cx, cy, r = cmap.circle
         tx, ty, tr = d["truth"]["chrome_circle"]
+        # its radius near the true centre, in image pixels: within a factor 1.5 of the truth
+        # (0.63-1.45 on the 280 Cycles scenes of the probe sets; here 1.03-1.44)
+        near, mass = cmap.radius_near(tx, ty, tr)
+        radii += mass >= locator.RADIUS_MASS and abs(math.log(tr / near)) < math.log(1.5)
         # a hit: the centre within a third of the radius and the radius within a factor 1.5
         # (here the sixth scene's radius is 0.67 of the truth: a hit or not, 5 remain)
         hits += math.hypot(cx - tx, cy - ty) <= tr / 3.0 and abs(math.log(r / tr)) < math.log(1.5)
-    assert hits >= 5
+    assert hits >= 5 and radii >= 5
 
 
 def test_missing_or_foreign_weights_are_one_line_errors(tmp_path):

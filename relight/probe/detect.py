@@ -78,7 +78,7 @@ LOCATOR_ADMIT = 0.5            # a circle neither chrome nor diffuse by the rule
                                # when the locator puts this much probability near its centre
 RADIUS_HYPOTHESES = (1.0, 0.85, 1.15)  # a Hough circle's radius is often off on a chrome sphere's faint rim
 PROPOSAL_RADIUS_HYPOTHESES = (1.0, 0.85, 1.15, 1.3)  # an extra proposal's (the learned locator's: the true
-                                                     # radius is 0.86-1.45 times its, locator.RADIUS_BOUND)
+                                                     # radius is 0.79-1.45 times its, locator.RADIUS_BOUND)
 CHROME_MIN_CONTRAST = 4.0      # chrome: brightest / median sphere pixel at least this,
 CHROME_MIN_CLIPPED_CONTRAST = 2.0  # ... or, when its brightest pixel clips (the contrast then is only a lower
                                # bound: a mirror of a bright room reads 1 / 0.32 = 3.1 at most in 8-bit), the

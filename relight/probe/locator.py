@@ -51,7 +51,7 @@ JUDGED_RADIUS_FRACTION = 1.1 * TRAINED_RADIUS_FRACTION   # ... so circles larger
                                  # it has no opinion on (a probe photograph's ball filling the frame)
 RADIUS_MASS = 0.05   # where it puts at least 5% of its probability, a sphere's radius is at most
 RADIUS_BOUND = 1.25  # 1.25 times the radius it gives there (on the 220 Cycles scenes of the probe
-                     # sets, where it put that much at the true centre, the true radius was 0.86-1.45
+                     # sets, where it put that much at the true centre, the true radius was 0.79-1.45
                      # times its, median 1.01, 97.5th percentile 1.25; docs/probe.md, thirteenth round)
 WEIGHTS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "models",
                        "probe_locator.safetensors")
