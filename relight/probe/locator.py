@@ -163,11 +163,10 @@ def locate(image: np.ndarray, clip_level: float | None, path: str = WEIGHTS) -> 
     image, exposed first as a camera would, :func:`relight.probe.detect.exposed_like_a_camera`)."""
     import torch
 
-    from relight.colour import srgb_encode
+    from relight.imageio import to_srgb8
     from relight.probe.detect import exposed_like_a_camera
     img = exposed_like_a_camera(image) if clip_level is None else np.asarray(image) / clip_level
-    codes = np.round(srgb_encode(np.clip(img, 0.0, 1.0)) * 255.0) / 255.0
-    x, (sx, sy) = network_input(codes)
+    x, (sx, sy) = network_input(to_srgb8(img) / 255.0)     # 8-bit codes, as it was trained on
     net = load_locator(path)
     with torch.no_grad():
         out = net(torch.from_numpy(x[None])).numpy()[0].astype(np.float64)
