@@ -11,6 +11,9 @@ a chrome sphere's highlight gives the direction, a gray sphere's shading the col
 * :mod:`relight.probe.locator`: a small learned network, trained on generated probe
   scenes, that says where a chrome sphere's centre likely is: a proposal and a prior on
   the detector's choice.
+* :mod:`relight.probe.outline_check`: a second small network that, shown one candidate
+  circle, says where the chrome sphere's circle lies relative to it: a second start for
+  the detector's edge fit (a sphere's contact shadow draws a larger circle beside it).
 * :mod:`relight.probe.run`: ``relight probe`` as one library call, with the QA overlay.
 * :mod:`relight.probe.batch`: a folder of photographs with each image's circles from a CSV.
 
@@ -19,5 +22,5 @@ photographs) is docs/probe.md.
 """
 
 __all__ = [
-    "detect", "geometry", "locator", "ortho", "run",
+    "detect", "geometry", "locator", "ortho", "outline_check", "run",
 ]

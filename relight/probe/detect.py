@@ -67,6 +67,7 @@ GROW_FINE_RADII = (1.1,)       # ... and, when none of those grows, this finer s
                                # step jumps over: issue-29 scene 29's dark rim) ...
 GROW_MIN_SUPPORT_RATIO = 0.8   # ... and kept with at least 80% of its edge support,
 GROW_ROUNDS = 3                # ... again from the larger one, up to three times
+CHECK_MOVE = 0.1               # the learned outline check's circle this far from a chrome outline: fitted again there
 CHROME_INSIDE_PX = 0.5         # a chrome outline's edge points further inside than this are reflections
                                # (about 1.5 robust sigmas of the edge points' scatter on a true rim, 0.3 px)
 PICK_HIGHLIGHT_WEIGHT = 0.1    # choosing the chrome sphere: per unit of highlight likelihood (strikes) ...
@@ -495,7 +496,7 @@ def exposed_like_a_camera(image: np.ndarray) -> np.ndarray:
 
 
 def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = None, extra=(),
-                 radius_bound=None) -> list[dict]:
+                 radius_bound=None, outline_check=None) -> list[dict]:
     """Refined sphere candidates with their features: ``sphere``, ``edge_support``,
     ``contrast``, ``residual``, ``chrome`` and ``diffuse`` (bool), best supported first.
     Of candidates of one kind and similar radius within half a radius of each other the
@@ -509,7 +510,10 @@ def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = N
     ``radius_bound``: ``(cx, cy, r) -> float | None``, the largest radius a chrome sphere
     whose circle is found at ``(cx, cy, r)`` likely has (the learned locator's,
     :meth:`relight.probe.locator.CentreMap.radius_bound`; None: no opinion), which chooses
-    among its nested outlines (:func:`_outermost_outline`, :func:`_drop_inner_circles`)."""
+    among its nested outlines (:func:`_outermost_outline`, :func:`_drop_inner_circles`).
+    ``outline_check``: ``(n, 3) circles -> (n, 3) circles``, where the chrome sphere's circle
+    lies seen from each (the learned outline check's, :mod:`relight.probe.outline_check`),
+    a second start for a chrome outline's fit (:func:`_checked_outline`)."""
     if clip_level is None:   # linear HDR: look for spheres in the image a camera would have taken
         image, clip_level = exposed_like_a_camera(image), 1.0
     smoothed = _edge_image(image)
@@ -573,6 +577,9 @@ def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = N
         c["radius_bound"] = radius_bound(*c["circle"]) if radius_bound and c["chrome"] else None
     out = [{**_outermost_outline(image, camera, c, smoothed, clip_level, c["radius_bound"]),
             "radius_bound": c["radius_bound"]} if c["chrome"] else c for c in out]
+    if outline_check is not None:
+        out = [_checked_outline(image, camera, c, smoothed, clip_level, outline_check) if c["chrome"] else c
+               for c in out]
     for c in out:     # does its brightest spot look like a small light's highlight?
         c["highlight"] = highlight_likelihood(image, camera, c["sphere"]) if c["chrome"] else -10.0
     out = _drop_inner_circles(out)
@@ -674,6 +681,42 @@ def _outermost_outline(image: np.ndarray, camera: Camera, cand: dict, smoothed: 
             best = {**best, **f, "sphere": sphere, "circle": outline_circle(camera, sphere), "chrome": True,
                     "diffuse": is_diffuse(f)}
     return best
+
+
+def _circle_gap(a, b) -> float:
+    """How far circle ``b`` is from ``a``: centre distance in ``a``'s radii plus the
+    radius ratio's absolute log."""
+    return math.hypot(b[0] - a[0], b[1] - a[1]) / a[2] + abs(math.log(b[2] / a[2]))
+
+
+def _checked_outline(image: np.ndarray, camera: Camera, cand: dict, smoothed: np.ndarray,
+                     clip_level: float | None, check) -> dict:
+    """A chrome candidate, or the outline fitted from where the learned outline check puts
+    the sphere when it puts it elsewhere (more than :data:`CHECK_MOVE` away, by
+    :func:`_circle_gap`): fitted there on a narrow band (:func:`refine_sphere`, then
+    :func:`outer_rim_fit`), it replaces the candidate when it is chrome, edge-supported and
+    the check, asked again from it, finds it nearer to where it belongs than the candidate
+    was (an edge fit started on the contact shadow's circle stays there; started from the
+    sphere, it keeps to the sphere). It keeps the better of the two edge supports, the
+    pair's evidence (as a grown outline keeps its inner circle's)."""
+    first = check([cand["circle"]])[0]
+    if _circle_gap(cand["circle"], first) <= CHECK_MOVE:
+        return cand
+    try:
+        guess = sphere_from_circle(camera, *first)
+        sphere, support = refine_sphere(image, camera, guess, smoothed, first_band_px=max(2.0, 0.1 * first[2]))
+    except ProbeError:
+        return cand
+    sphere = outer_rim_fit(smoothed, camera, sphere)
+    circle = outline_circle(camera, sphere)
+    if support < MIN_EDGE_SUPPORT or _circle_gap(circle, check([circle])[0]) >= _circle_gap(cand["circle"], first):
+        return cand
+    f = sphere_features(image, camera, sphere, clip_level)
+    if not is_chrome(f):
+        return cand
+    # the pair's evidence, as a grown outline's: the better supported of the two stays
+    return {**cand, **f, "sphere": sphere, "circle": circle, "edge_support": max(support, cand["edge_support"]),
+            "chrome": True, "diffuse": is_diffuse(f), "checked_from": cand["circle"]}
 
 
 def outer_rim_fit(smoothed: np.ndarray, camera: Camera, sphere: Sphere) -> Sphere:

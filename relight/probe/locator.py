@@ -37,6 +37,7 @@ __all__ = [
     "CentreMap",
     "build_net",
     "camera_pipeline",
+    "codes",
     "judges",
     "load_locator",
     "locate",
@@ -158,15 +159,21 @@ def judges(radius_px: float, width: int, height: int) -> bool:
     return radius_px <= JUDGED_RADIUS_FRACTION * max(width, height)
 
 
+def codes(image: np.ndarray, clip_level: float | None) -> np.ndarray:
+    """A linear ``(H, W, 3)`` image as the learned networks see it: 8-bit sRGB codes scaled
+    to 0-1 (``clip_level`` None: a linear HDR image, exposed first as a camera would,
+    :func:`relight.probe.detect.exposed_like_a_camera`)."""
+    from relight.imageio import to_srgb8
+    from relight.probe.detect import exposed_like_a_camera
+    img = exposed_like_a_camera(image) if clip_level is None else np.asarray(image) / clip_level
+    return to_srgb8(img) / 255.0
+
+
 def locate(image: np.ndarray, clip_level: float | None, path: str = WEIGHTS) -> CentreMap:
     """Run the locator on a linear ``(H, W, 3)`` image (``clip_level`` None: a linear HDR
     image, exposed first as a camera would, :func:`relight.probe.detect.exposed_like_a_camera`)."""
     import torch
-
-    from relight.imageio import to_srgb8
-    from relight.probe.detect import exposed_like_a_camera
-    img = exposed_like_a_camera(image) if clip_level is None else np.asarray(image) / clip_level
-    x, (sx, sy) = network_input(to_srgb8(img) / 255.0)     # 8-bit codes, as it was trained on
+    x, (sx, sy) = network_input(codes(image, clip_level))     # 8-bit codes, as it was trained on
     net = load_locator(path)
     with torch.no_grad():
         out = net(torch.from_numpy(x[None])).numpy()[0].astype(np.float64)

@@ -115,8 +115,20 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
     if not candidates:
         bound = None if centres is None else (
             lambda cx, cy, r: centres.radius_bound(cx, cy, r, camera.width, camera.height))
+        check = None
+        if centres is not None:   # the learned outline check, on circles the locator can judge too
+            from relight.probe import outline_check
+            seen = locator.codes(image, clip_level)
+
+            def check(circles):
+                circles = np.asarray(circles, float).reshape(-1, 3)
+                judged = np.array([locator.judges(c[2], camera.width, camera.height) for c in circles], bool)
+                out = circles.copy()
+                if judged.any():
+                    out[judged] = outline_check.predict(seen, circles[judged])
+                return out
         candidates.extend(detect.find_spheres(image, camera, clip_level, extra=[centres.circle] if centres else (),
-                                              radius_bound=bound))
+                                              radius_bound=bound, outline_check=check))
     if centres is not None:   # (circles larger than any it was trained on get no prior either way)
         for c in candidates:
             if locator.judges(c["circle"][2], camera.width, camera.height):
@@ -124,6 +136,8 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
     found = detect.pick_sphere(candidates, kind, exclude)
     if "locator" in found:
         report["locator_probability"] = found["locator"]
+    if "checked_from" in found:   # the outline the learned outline check moved it from
+        report["checked_from"] = found["checked_from"]
     rival, margin = detect.rival_sphere(candidates, found, kind, exclude) if kind == "chrome" else (None, 0.0)
     if rival is not None and margin < detect.DETECTION_MARGIN:
         # another circle scores nearly as well: the detection is ambiguous (see run_probe)
@@ -197,6 +211,8 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
                 p = refinement.get("locator_probability")   # None: a circle too large for it to judge
                 entry["locator"] = {"circle": [round(v, 2) for v in refinement["locator_circle"]],
                                     "probability": None if p is None else round(p, 4)}
+                if "checked_from" in refinement:
+                    entry["locator"]["outline_moved_from"] = [round(v, 2) for v in refinement["checked_from"]]
             if "rival" in refinement:
                 _detection_ambiguity(entry, result, hl, refinement, image, camera, clip, d_dir)
         elif refinement:
