@@ -855,7 +855,7 @@ def test_a_rival_circle_scoring_nearly_as_well_widens_the_uncertainty(tmp_path, 
     from relight.probe.run import ProbeConfig, run_probe
     path, cam, left, right, l1, l2 = _two_mirrors(tmp_path)
     # (the rules' scores alone: the learned locator off, its prior would move them)
-    monkeypatch.setattr(detect, "find_spheres", lambda image, camera, clip=None, extra=(), radius_bound=None: [
+    monkeypatch.setattr(detect, "find_spheres", lambda image, camera, clip=None, extra=(), radius_bound=None, outline_check=None: [
         _candidate(cam, left, 0.6), _candidate(cam, right, rival_support)])
     entry = run_probe(ProbeConfig(chrome=path, fov_deg=FOV_DEG, locator=False)).entry
     assert _angle(entry["to_light_camera"], l1) < 3.0
@@ -885,7 +885,7 @@ def test_the_rival_is_another_circle_not_the_same_one_found_twice():
 
 def test_the_command_names_the_rival_circle(tmp_path, monkeypatch, capsys):
     path, cam, left, right, l1, l2 = _two_mirrors(tmp_path)
-    monkeypatch.setattr(detect, "find_spheres", lambda image, camera, clip=None, extra=(), radius_bound=None: [
+    monkeypatch.setattr(detect, "find_spheres", lambda image, camera, clip=None, extra=(), radius_bound=None, outline_check=None: [
         _candidate(cam, left, 0.6), _candidate(cam, right, 0.55)])
     out = tmp_path / "probe.json"
     assert _run(["probe", "--chrome", path, "--fov", str(FOV_DEG), "--out", str(out), "--no-locator"]) == 0
