@@ -131,6 +131,33 @@ def test_the_locator_never_moves_the_diffuse_pick():
     assert detect.pick_sphere([d1, d2], "diffuse")["circle"] == d1["circle"]
 
 
+def test_a_circle_too_large_to_judge_gets_what_the_locator_leaves_over():
+    # a small chrome circle the locator judges and a large one it cannot (no "locator" key),
+    # the large one's outline a little better once its radius is counted
+    small, large = (50.0, 50.0, 15.0), (150.0, 60.0, 45.0)
+    diffuse = {"circle": (90.0, 90.0, 15.0), "chrome": False, "diffuse": True, "edge_support": 0.9,
+               "residual": 0.1, "locator": 0.99}
+    for sure, picked in ((0.9, small), (0.05, large)):
+        cands = [_chrome(small, 0.55, sure), _chrome(large, 0.52), dict(diffuse)]
+        assert detect.pick_sphere(cands, "chrome")["circle"] == large     # no prior on it: it wins
+        detect.share_the_rest(cands)
+        # one less the most the locator puts near a chrome candidate (never the diffuse one's)
+        assert cands[1]["locator_rest"] == pytest.approx(1.0 - sure) and "locator_rest" not in cands[0]
+        # sure of the small circle, the large one loses; unsure, the large one keeps the pick
+        assert detect.pick_sphere(cands, "chrome")["circle"] == picked
+    # what is left over is a prior, never an admission: a circle neither chrome nor diffuse
+    # that the locator cannot judge stays out of the pool however much is left over
+    odd = dict(_chrome(large, 0.9), chrome=False)
+    cands = [_chrome(small, 0.55, 0.0), odd]
+    detect.share_the_rest(cands)
+    assert odd["locator_rest"] == pytest.approx(1.0)
+    assert detect.pick_sphere(cands, "chrome")["circle"] == small
+    # with no judged chrome candidate there is nothing to share
+    cands = [_chrome(large, 0.5)]
+    detect.share_the_rest(cands)
+    assert "locator_rest" not in cands[0]
+
+
 needs_weights = pytest.mark.skipif(not os.path.exists(locator.WEIGHTS), reason="no shipped locator weights")
 
 
@@ -205,8 +232,9 @@ PSM = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "psm
 @pytest.mark.skipif(not os.path.isdir(PSM), reason="shared/data/psm_spheres not present")
 def test_a_ball_filling_the_photograph_is_not_judged_and_is_still_found():
     # psm_spheres' chrome ball (r ~119 px, 23% of the 512 px side: larger than any training
-    # sphere): the locator, which puts its centre on a small bright thing instead, gives it
-    # no prior, so the detection is the rules' (the mask's circle, within 3 px)
+    # sphere): the locator, which puts its centre on a small bright thing instead, does not
+    # judge it (it gets only what the locator leaves over, detect.share_the_rest), so the
+    # detection is the rules' (the mask's circle, within 3 px)
     from relight.probe.detect import load_mask
     from relight.probe.geometry import Camera, sphere_from_mask
     from relight.probe.run import ProbeConfig, run_probe

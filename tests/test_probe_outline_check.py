@@ -99,6 +99,17 @@ def test_find_spheres_asks_the_check_about_chrome_outlines_and_keeps_those_it_ag
     assert [c["circle"] for c in checked] == [c["circle"] for c in plain]
 
 
+def test_the_check_judges_circles_up_to_the_largest_it_was_trained_on():
+    # candidates up to 1.5 times a sphere of at most 15% of the side: 22.5% of it, beyond
+    # the locator's own range (16.5%)
+    from relight.probe import locator
+    side = 400
+    top = oc.TRAIN_RADIUS_RANGE[1] * locator.TRAINED_RADIUS_FRACTION * side
+    assert top == pytest.approx(0.225 * side)
+    assert oc.judges(0.2 * side, side, 300) and not locator.judges(0.2 * side, side, 300)
+    assert oc.judges(top - 0.01, 300, side) and not oc.judges(top + 0.01, 300, side)
+
+
 def test_missing_or_foreign_weights_are_one_line_errors(tmp_path):
     from relight.errors import ProbeError
     with pytest.raises(ProbeError, match="no outline check weights"):

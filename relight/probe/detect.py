@@ -829,6 +829,22 @@ def _pool(candidates: list[dict], kind: str, exclude) -> list[dict]:
         math.hypot(c["circle"][0] - e[0], c["circle"][1] - e[1]) < c["circle"][2] + e[2] for e in exclude)]
 
 
+def share_the_rest(candidates: list[dict]) -> None:
+    """Give the circles the learned locator cannot judge (no ``locator`` probability: larger
+    than it was trained on) what its map leaves over: one less the most it puts near any
+    chrome candidate it judges (``locator_rest``, a prior for the pick, never an admission).
+    Where it is sure the sphere is one of the small circles, a large one is unlikely to be it;
+    where it puts little near any, a large circle keeps nearly the prior of a sure one."""
+    judged = [c["locator"] for c in candidates if "locator" in c and (
+        c["chrome"] or (not c["diffuse"] and c["locator"] >= LOCATOR_ADMIT))]
+    if not judged:
+        return
+    rest = 1.0 - max(judged)
+    for c in candidates:
+        if "locator" not in c:
+            c["locator_rest"] = rest
+
+
 def _pick_score(c: dict, kind: str) -> float:
     """How much a candidate looks like the ``kind`` sphere (:func:`pick_sphere`)."""
     if kind == "chrome":   # the clearest outline, a bright highlight that looks like a small
@@ -837,7 +853,8 @@ def _pick_score(c: dict, kind: str) -> float:
         # its reflections show smaller circles inside it)
         # (a clipped highlight's contrast is at least the clip level over the median: ``clip_contrast``);
         # with the learned locator's probability near its centre when it ran (``locator``)
-        prior = LOCATOR_WEIGHT * math.log(max(c["locator"], LOCATOR_FLOOR)) if "locator" in c else 0.0
+        p = c.get("locator", c.get("locator_rest"))
+        prior = LOCATOR_WEIGHT * math.log(max(p, LOCATOR_FLOOR)) if p is not None else 0.0
         return (prior + c["edge_support"]
                 + 0.1 * min(math.log10(max(c["contrast"], c.get("clip_contrast", 0.0))), 3.0) / 3.0
                 + PICK_HIGHLIGHT_WEIGHT * max(c.get("highlight", 0.0), -3.0)

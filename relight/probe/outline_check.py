@@ -35,6 +35,7 @@ __all__ = [
     "WINDOW",
     "build_net",
     "crop",
+    "judges",
     "load_check",
     "predict",
     "sample_candidates",
@@ -47,6 +48,14 @@ TRAIN_MAX_OFFSET = 0.45   # training candidates: centre up to this many (true) r
 TRAIN_RADIUS_RANGE = (0.7, 1.5)   # ... radius this many times the true one (log-uniform)
 WEIGHTS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "models",
                        "probe_outline_check.safetensors")
+
+
+def judges(radius_px: float, width: int, height: int) -> bool:
+    """Whether the check can speak for a candidate of this radius: no larger than the
+    largest it was trained on (:data:`TRAIN_RADIUS_RANGE`'s top times the locator's largest
+    training sphere, :data:`relight.probe.locator.TRAINED_RADIUS_FRACTION` of the longer side)."""
+    from relight.probe.locator import TRAINED_RADIUS_FRACTION
+    return radius_px <= TRAIN_RADIUS_RANGE[1] * TRAINED_RADIUS_FRACTION * max(width, height)
 
 
 def build_net(seed: int = 0):

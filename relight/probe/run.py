@@ -116,23 +116,24 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
         bound = None if centres is None else (
             lambda cx, cy, r: centres.radius_bound(cx, cy, r, camera.width, camera.height))
         check = None
-        if centres is not None:   # the learned outline check, on circles the locator can judge too
+        if centres is not None:   # the learned outline check, on circles no larger than it was trained on
             from relight.probe import outline_check
             seen = locator.codes(image, clip_level)
 
             def check(circles):
                 circles = np.asarray(circles, float).reshape(-1, 3)
-                judged = np.array([locator.judges(c[2], camera.width, camera.height) for c in circles], bool)
+                judged = np.array([outline_check.judges(c[2], camera.width, camera.height) for c in circles], bool)
                 out = circles.copy()
                 if judged.any():
                     out[judged] = outline_check.predict(seen, circles[judged])
                 return out
         candidates.extend(detect.find_spheres(image, camera, clip_level, extra=[centres.circle] if centres else (),
                                               radius_bound=bound, outline_check=check))
-    if centres is not None:   # (circles larger than any it was trained on get no prior either way)
+    if centres is not None:   # (circles larger than any it was trained on: what it leaves, detect.share_the_rest)
         for c in candidates:
             if locator.judges(c["circle"][2], camera.width, camera.height):
                 c["locator"] = centres.mass_near(*c["circle"])
+        detect.share_the_rest(candidates)
     found = detect.pick_sphere(candidates, kind, exclude)
     if "locator" in found:
         report["locator_probability"] = found["locator"]
