@@ -40,6 +40,7 @@ __all__ = [
     "codes",
     "judges",
     "load_locator",
+    "load_weights",
     "locate",
     "network_input",
     "train",
@@ -75,19 +76,25 @@ def build_net(seed: int = 0):
     return nn.Sequential(body, nn.Conv2d(96, 4, 1))
 
 
+def load_weights(net, path: str, name: str, script: str):
+    """``net`` with the weights of a safetensors file, in evaluation mode; a one-line
+    ProbeError naming ``name`` (and the ``script`` that trains it) when the file is missing,
+    truncated or another network's. Shared by the probe's learned networks."""
+    if not os.path.exists(path):
+        raise ProbeError(f"no {name} weights at {path} (train them: bash {script})")
+    from safetensors.torch import load_file
+    try:
+        net.load_state_dict(load_file(path))
+    except Exception as exc:   # a truncated or foreign file: one line, not a traceback
+        raise ProbeError(f"{path}: not the {name}'s weights ({type(exc).__name__})") from None
+    return net.eval()
+
+
 @functools.lru_cache(maxsize=2)
 def load_locator(path: str = WEIGHTS):
     """The trained network from a safetensors file (evaluation mode); ProbeError when the
     file is missing or unreadable."""
-    if not os.path.exists(path):
-        raise ProbeError(f"no sphere locator weights at {path} (train them: bash scripts/train_locator.sh)")
-    from safetensors.torch import load_file
-    net = build_net()
-    try:
-        net.load_state_dict(load_file(path))
-    except Exception as exc:   # a truncated or foreign file: one line, not a traceback
-        raise ProbeError(f"{path}: not the sphere locator's weights ({type(exc).__name__})") from None
-    return net.eval()
+    return load_weights(build_net(), path, "sphere locator", "scripts/train_locator.sh")
 
 
 def network_input(codes: np.ndarray) -> tuple[np.ndarray, tuple[float, float]]:

@@ -27,8 +27,6 @@ import os
 
 import numpy as np
 
-from relight.errors import ProbeError
-
 __all__ = [
     "SIZE",
     "WEIGHTS",
@@ -78,15 +76,8 @@ def build_net(seed: int = 0):
 def load_check(path: str = WEIGHTS):
     """The trained network from a safetensors file (evaluation mode); ProbeError when the
     file is missing or unreadable."""
-    if not os.path.exists(path):
-        raise ProbeError(f"no outline check weights at {path} (train them: bash scripts/train_outline_check.sh)")
-    from safetensors.torch import load_file
-    net = build_net()
-    try:
-        net.load_state_dict(load_file(path))
-    except Exception as exc:   # a truncated or foreign file: one line, not a traceback
-        raise ProbeError(f"{path}: not the outline check's weights ({type(exc).__name__})") from None
-    return net.eval()
+    from relight.probe.locator import load_weights
+    return load_weights(build_net(), path, "outline check", "scripts/train_outline_check.sh")
 
 
 def crop(image: np.ndarray, circle) -> np.ndarray:
