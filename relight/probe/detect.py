@@ -27,7 +27,7 @@ __all__ = [
     "camera_exposure", "exposed_like_a_camera", "HDR_CLIP_SHARE", "find_spheres", "is_chrome", "is_diffuse", "pick_sphere",
     "outline_fit_px", "constrained_refinement", "GROW_RADII", "GROW_FINE_RADII", "GROW_MIN_SUPPORT_RATIO", "GROW_ROUNDS",
     "PICK_HIGHLIGHT_WEIGHT", "PICK_RADIUS_WEIGHT", "CHROME_INSIDE_PX", "outer_rim_fit", "DETECTION_MARGIN",
-    "rival_sphere",
+    "rival_sphere", "share_the_rest",
 ]
 
 import math
