@@ -243,4 +243,5 @@ def test_a_ball_filling_the_photograph_is_not_judged_and_is_still_found():
     truth = detect.outline_circle(Camera(mask.shape[1], mask.shape[0], None),
                                   sphere_from_mask(Camera(mask.shape[1], mask.shape[0], None), mask))
     assert entry["locator"]["probability"] is None
+    assert 0.5 < entry["locator"]["left_over"] <= 1.0    # what the locator leaves over it (little is claimed)
     assert math.dist(entry["chrome_circle"][:2], truth[:2]) < 3.0 and abs(entry["chrome_circle"][2] - truth[2]) < 3.0

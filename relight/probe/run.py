@@ -137,6 +137,8 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
     found = detect.pick_sphere(candidates, kind, exclude)
     if "locator" in found:
         report["locator_probability"] = found["locator"]
+    elif "locator_rest" in found:   # too large for it to judge: what it left over (detect.share_the_rest)
+        report["locator_left_over"] = found["locator_rest"]
     if "checked_from" in found:   # the outline the learned outline check moved it from
         report["checked_from"] = found["checked_from"]
     rival, margin = detect.rival_sphere(candidates, found, kind, exclude) if kind == "chrome" else (None, 0.0)
@@ -212,6 +214,8 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
                 p = refinement.get("locator_probability")   # None: a circle too large for it to judge
                 entry["locator"] = {"circle": [round(v, 2) for v in refinement["locator_circle"]],
                                     "probability": None if p is None else round(p, 4)}
+                if "locator_left_over" in refinement:
+                    entry["locator"]["left_over"] = round(refinement["locator_left_over"], 4)
                 if "checked_from" in refinement:
                     entry["locator"]["outline_moved_from"] = [round(v, 2) for v in refinement["checked_from"]]
             if "rival" in refinement:
@@ -376,7 +380,9 @@ def write_qa(path: str, result: ProbeResult, title: str = "") -> None:
                      f"  camera model {b['camera_deg']:.2f}{detection}  -> total {b['total_deg']:.2f}"
                      f"  [chrome {e['chrome_found_by']}"
                      + (f", locator p {e['locator']['probability']:.2f}"
-                        if e.get("locator", {}).get("probability") is not None else "") + "]")
+                        if e.get("locator", {}).get("probability") is not None else "")
+                     + (f", locator left over {e['locator']['left_over']:.2f}"
+                        if "left_over" in e.get("locator", {}) else "") + "]")
     for i, text in enumerate(t for t in lines if t):
         cv2.putText(panel, text, (6, height + 18 + 20 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1,
                     cv2.LINE_AA)
