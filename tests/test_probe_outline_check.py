@@ -110,6 +110,17 @@ def test_the_check_judges_circles_up_to_the_largest_it_was_trained_on():
     assert oc.judges(top - 0.01, 300, side) and not oc.judges(top + 0.01, 300, side)
 
 
+@pytest.mark.skipif(not os.path.exists(oc.WEIGHTS), reason="no shipped outline check weights")
+def test_the_detectors_check_speaks_only_for_circles_it_can_judge():
+    # on a 100 px image: a 10 px circle gets the network's answer, a 30 px one (over 22.5 px)
+    # comes back as it is
+    codes = np.random.default_rng(1).random((100, 100, 3))
+    circles = np.array([(50.0, 50.0, 10.0), (50.0, 50.0, 30.0)])
+    got = oc.check_circles(codes, circles)
+    assert np.allclose(got[0], oc.predict(codes, circles[:1])[0], rtol=1e-9, atol=1e-9)
+    assert np.array_equal(got[1], circles[1])
+
+
 def test_missing_or_foreign_weights_are_one_line_errors(tmp_path):
     from relight.errors import ProbeError
     with pytest.raises(ProbeError, match="no outline check weights"):

@@ -835,8 +835,7 @@ def share_the_rest(candidates: list[dict]) -> None:
     chrome candidate it judges (``locator_rest``, a prior for the pick, never an admission).
     Where it is sure the sphere is one of the small circles, a large one is unlikely to be it;
     where it puts little near any, a large circle keeps nearly the prior of a sure one."""
-    judged = [c["locator"] for c in candidates if "locator" in c and (
-        c["chrome"] or (not c["diffuse"] and c["locator"] >= LOCATOR_ADMIT))]
+    judged = [c["locator"] for c in _pool(candidates, "chrome", ()) if "locator" in c]
     if not judged:
         return
     rest = 1.0 - max(judged)

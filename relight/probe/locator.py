@@ -118,11 +118,13 @@ class CentreMap:
     """The locator's answer on one image: ``prob`` the probability that the chrome
     sphere's centre lies in each cell (sums to 1), ``centres`` ``(h, w, 2)`` where in the
     image each cell puts it, ``radii`` ``(h, w)`` the radius each cell gives it, ``circle``
-    the most likely circle ``(cx, cy, r)``, in image pixels."""
+    the most likely circle ``(cx, cy, r)``, in image pixels; ``seen`` the image as it saw
+    it (:func:`codes`; the outline check looks at the same)."""
     prob: np.ndarray
     centres: np.ndarray
     radii: np.ndarray
     circle: tuple[float, float, float]
+    seen: np.ndarray | None = None
 
     def _near(self, cx: float, cy: float, r: float) -> np.ndarray:
         d2 = (self.centres[..., 0] - cx) ** 2 + (self.centres[..., 1] - cy) ** 2
@@ -180,7 +182,8 @@ def locate(image: np.ndarray, clip_level: float | None, path: str = WEIGHTS) -> 
     """Run the locator on a linear ``(H, W, 3)`` image (``clip_level`` None: a linear HDR
     image, exposed first as a camera would, :func:`relight.probe.detect.exposed_like_a_camera`)."""
     import torch
-    x, (sx, sy) = network_input(codes(image, clip_level))     # 8-bit codes, as it was trained on
+    seen = codes(image, clip_level)     # 8-bit codes, as it was trained on
+    x, (sx, sy) = network_input(seen)
     net = load_locator(path)
     with torch.no_grad():
         out = net(torch.from_numpy(x[None])).numpy()[0].astype(np.float64)
@@ -192,7 +195,7 @@ def locate(image: np.ndarray, clip_level: float | None, path: str = WEIGHTS) -> 
     y, x = np.unravel_index(int(np.argmax(logit)), logit.shape)
     radii = np.exp(out[3]) * STRIDE * sx
     circle = (centres[y, x, 0], centres[y, x, 1], radii[y, x])
-    return CentreMap(prob, centres, radii, tuple(float(v) for v in circle))
+    return CentreMap(prob, centres, radii, tuple(float(v) for v in circle), seen)
 
 
 def camera_pipeline(linear: np.ndarray, rng: np.random.Generator, ranges) -> np.ndarray:

@@ -32,6 +32,7 @@ __all__ = [
     "WEIGHTS",
     "WINDOW",
     "build_net",
+    "check_circles",
     "crop",
     "judges",
     "load_check",
@@ -119,6 +120,19 @@ def predict(codes: np.ndarray, circles, path: str = WEIGHTS) -> np.ndarray:
         out = load_check(path)(torch.from_numpy(x)).numpy().astype(np.float64)
     r = circles[:, 2]
     return np.stack([circles[:, 0] + out[:, 0] * r, circles[:, 1] + out[:, 1] * r, r * np.exp(out[:, 2])], 1)
+
+
+def check_circles(codes: np.ndarray, circles, path: str = WEIGHTS) -> np.ndarray:
+    """:func:`predict` for the circles the check can judge (:func:`judges`), each other one
+    as it is (no opinion): the detector's ``outline_check``
+    (:func:`relight.probe.detect.find_spheres`)."""
+    circles = np.asarray(circles, np.float64).reshape(-1, 3)
+    h, w = codes.shape[:2]
+    judged = np.array([judges(r, w, h) for r in circles[:, 2]], bool)
+    out = circles.copy()
+    if judged.any():
+        out[judged] = predict(codes, circles[judged], path)
+    return out
 
 
 def sample_candidates(truth, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:

@@ -3,6 +3,7 @@ overlay) out. See :mod:`relight.probe.geometry` for the geometry and
 :mod:`relight.probe.detect` for finding the spheres."""
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -116,17 +117,9 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
         bound = None if centres is None else (
             lambda cx, cy, r: centres.radius_bound(cx, cy, r, camera.width, camera.height))
         check = None
-        if centres is not None:   # the learned outline check, on circles no larger than it was trained on
+        if centres is not None:   # the learned outline check, on the image as the locator saw it
             from relight.probe import outline_check
-            seen = locator.codes(image, clip_level)
-
-            def check(circles):
-                circles = np.asarray(circles, float).reshape(-1, 3)
-                judged = np.array([outline_check.judges(c[2], camera.width, camera.height) for c in circles], bool)
-                out = circles.copy()
-                if judged.any():
-                    out[judged] = outline_check.predict(seen, circles[judged])
-                return out
+            check = functools.partial(outline_check.check_circles, centres.seen)
         candidates.extend(detect.find_spheres(image, camera, clip_level, extra=[centres.circle] if centres else (),
                                               radius_bound=bound, outline_check=check))
     if centres is not None:   # (circles larger than any it was trained on: what it leaves, detect.share_the_rest)
