@@ -321,6 +321,28 @@ def test_a_light_beside_clipped_surroundings_is_still_located():
     assert _angle(found.to_light, light) < 3.0
 
 
+def test_in_an_image_that_clips_a_blob_that_does_not_is_not_the_light():
+    # the light clips (a small light is hundreds of times brighter than what it lights) but
+    # sits on a lit wall's bright reflection, which costs it as "not standing alone"; a
+    # lone spot at 98.5% of the clip level ties with it by brightness (TIE_FRACTION) and
+    # would win on looks alone. It is known to be dimmer than the clipped light: in an
+    # image that clips it takes a strike, and the light wins; read as linear (no clip
+    # level) the same pixels choose the spot (the strike is what decides)
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 60.0, 10.0)
+    light = np.array([0.3, 0.4, 0.87]) / np.linalg.norm([0.3, 0.4, 0.87])
+    image = _quantise(_render(cam, sphere, light, light_radius_deg=2.5,
+                              extra=_lit_wall(light, core_deg=0.0, halo_deg=14.0, halo=0.9)))
+    other = np.array([-0.35, -0.3, 0.89]) / np.linalg.norm([-0.35, -0.3, 0.89])
+    spot, _ = pg.predict_highlight(cam, sphere, other)
+    image[int(spot[1]), int(spot[0])] = 0.985
+    clipped = pg.locate_highlight(image, cam, sphere, clip_level=1.0)
+    assert clipped.quality["candidates"] >= 2
+    assert _angle(clipped.to_light, light) < DIR_TOL_DEG
+    linear = pg.locate_highlight(image, cam, sphere)
+    assert _angle(linear.to_light, other) < 5.0
+
+
 # ------------------------------------------------------------------ sub-pixel localisation
 def _blob(x0, y0, sigma, amplitude):
     """A lens-blurred point highlight: a Gaussian of ``sigma`` px at ``(x0, y0)``,
@@ -684,6 +706,55 @@ def test_chrome_outline_follows_the_outermost_edges(half_angle_deg, depth_px):
         assert math.dist(outer[:2], true[:2]) < 0.05 and abs(outer[2] - true[2]) < 0.05
 
 
+def test_a_mirror_rim_shift_follows_the_edge_blur():
+    # closed form: CHROME_RIM_SHIFT blur widths, the blur being the edge smoothing and the
+    # pixel's own box (1/sqrt(12) px) in quadrature; a clean image gets the least smoothing
+    disc, _ = _rim_hidden_below(0.0, 0.0)
+    assert detect.edge_blur_px(disc) == pytest.approx(math.hypot(detect.EDGE_SIGMA_PX, math.sqrt(1 / 12)), rel=1e-9)
+    assert detect.chrome_rim_shift_px(disc) == pytest.approx(detect.CHROME_RIM_SHIFT * detect.edge_blur_px(disc))
+    noisy = np.clip(disc + np.random.default_rng(3).normal(0.0, 0.01, disc.shape), 0.0, 1.0)
+    assert detect.chrome_rim_shift_px(noisy) > detect.chrome_rim_shift_px(disc)
+
+
+@pytest.mark.parametrize("fov", [None, 45.0])
+def test_an_outline_from_its_rim_grows_by_the_shift_about_the_same_centre(fov):
+    cam = pg.Camera.from_fov(128, 96, fov) if fov else pg.Camera(128, 96, None)
+    sphere = pg.sphere_from_circle(cam, 30.4, 70.2, 14.3)
+    before = detect.outline_circle(cam, sphere)
+    after = detect.outline_circle(cam, detect.outline_from_rim(cam, sphere, 0.25))
+    assert after[2] - before[2] == pytest.approx(0.25, abs=0.01)
+    assert math.dist(after[:2], before[:2]) < 0.01
+    assert detect.outline_from_rim(cam, sphere, 0.0) is sphere
+
+
+def test_mirror_outlines_fitted_to_their_rims_edges_come_out_the_right_size_in_fresh_renders():
+    # twelve rooms of the harder probe set (seeds no tuning or judging set uses) rendered
+    # here by Mitsuba at 256 px and written as 8-bit: the chrome sphere's rim mirrors what
+    # lies just behind it, so its edges lie inside the outline, and the outermost-rim fit
+    # started at the true circle comes out too small (Cycles renders: 0.17 px at the
+    # median); moved out by the rim shift it is within 0.1 px at the median
+    from relight import backend
+    from relight.colour import srgb_decode
+    from relight.imageio import to_srgb8
+    from relight.verify import probe_scenes as ps
+    backend.init()
+    fitted, shifted = [], []
+    for seed in range(7000, 7012):
+        d = ps.sample_room_scene(seed, res=256)
+        linear = ps.render_room_mitsuba(d, spp=16)
+        image = srgb_decode(to_srgb8(linear, detect.camera_exposure(linear, 0.02)).astype(np.float64) / 255.0)
+        t = d["truth"]
+        cam = pg.Camera.from_fov(256, 256, t["fov_deg"])
+        smoothed = detect._edge_image(image)
+        fit, _ = detect.refine_sphere(image, cam, pg.sphere_from_circle(cam, *t["chrome_circle"]), smoothed)
+        fit = detect.outer_rim_fit(smoothed, cam, fit)
+        fitted.append(detect.outline_circle(cam, fit)[2] - t["chrome_circle"][2])
+        moved = detect.outline_from_rim(cam, fit, detect.chrome_rim_shift_px(image))
+        shifted.append(detect.outline_circle(cam, moved)[2] - t["chrome_circle"][2])
+    assert np.median(fitted) < -0.08                      # the problem
+    assert abs(np.median(shifted)) < 0.1
+
+
 # ------------------------------------------------------------------ a mirror of a bright room in 8-bit
 def _bright_room(s):
     """A bright room around the sphere: reflected directions toward the camera's side lit in
@@ -867,7 +938,12 @@ def test_a_rival_circle_scoring_nearly_as_well_widens_the_uncertainty(tmp_path, 
     assert det["ambiguity"] == pytest.approx(0.5, abs=0.01)     # (the radius term differs a little)
     assert abs(det["separation_deg"] - _angle(l1, l2)) < 3.0
     assert _angle(det["alternative_to_light_camera"], l2) < 3.0
-    assert np.allclose(det["alternative_circle"], pg.outline_circle(cam, right), atol=1e-2)
+    # (both outlines are the rims' fits moved out by the image's rim shift, detect.chrome_rim_shift_px)
+    assert entry["chrome_rim_shift_px"] > 0
+    rival = detect.outline_from_rim(cam, right, entry["chrome_rim_shift_px"])
+    assert np.allclose(det["alternative_circle"], pg.outline_circle(cam, rival), atol=1e-2)
+    assert np.allclose(entry["chrome_circle"], pg.outline_circle(
+        cam, detect.outline_from_rim(cam, left, entry["chrome_rim_shift_px"])), atol=1e-2)
     assert budget["detection_deg"] == pytest.approx(det["ambiguity"] * det["separation_deg"], abs=0.01)
     assert entry["quality_deg"] == pytest.approx(math.hypot(budget["circle_deg"], budget["highlight_deg"],
                                                             budget["camera_deg"], budget["detection_deg"]), abs=0.01)
@@ -889,7 +965,8 @@ def test_the_command_names_the_rival_circle(tmp_path, monkeypatch, capsys):
         _candidate(cam, left, 0.6), _candidate(cam, right, 0.55)])
     out = tmp_path / "probe.json"
     assert _run(["probe", "--chrome", path, "--fov", str(FOV_DEG), "--out", str(out), "--no-locator"]) == 0
-    cx, cy, r = pg.outline_circle(cam, right)
-    assert f"note: another circle, ({cx:.1f}, {cy:.1f}) r {r:.1f}" in capsys.readouterr().out
     with open(out) as f:
-        assert "detection" in json.load(f)["predictions"][0]
+        entry = json.load(f)["predictions"][0]
+    assert "detection" in entry
+    cx, cy, r = pg.outline_circle(cam, detect.outline_from_rim(cam, right, entry["chrome_rim_shift_px"]))
+    assert f"note: another circle, ({cx:.1f}, {cy:.1f}) r {r:.1f}" in capsys.readouterr().out

@@ -27,7 +27,8 @@ __all__ = [
     "camera_exposure", "exposed_like_a_camera", "HDR_CLIP_SHARE", "find_spheres", "is_chrome", "is_diffuse", "pick_sphere",
     "outline_fit_px", "constrained_refinement", "GROW_RADII", "GROW_FINE_RADII", "GROW_MIN_SUPPORT_RATIO", "GROW_ROUNDS",
     "PICK_HIGHLIGHT_WEIGHT", "PICK_RADIUS_WEIGHT", "CHROME_INSIDE_PX", "outer_rim_fit", "DETECTION_MARGIN",
-    "rival_sphere", "share_the_rest",
+    "rival_sphere", "share_the_rest", "CHROME_RIM_SHIFT", "PIXEL_BLUR_PX", "edge_blur_px", "chrome_rim_shift_px",
+    "outline_from_rim",
 ]
 
 import math
@@ -69,6 +70,8 @@ GROW_MIN_SUPPORT_RATIO = 0.8   # ... and kept with at least 80% of its edge supp
 GROW_ROUNDS = 3                # ... again from the larger one, up to three times
 CHECK_MOVE = 0.1               # the learned outline check's circle this far from a chrome outline: fitted again there
 CHROME_INSIDE_PX = 0.5         # a chrome outline's edge points further inside than this are reflections
+CHROME_RIM_SHIFT = 0.3         # a mirror sphere's rim edges lie this many blur widths inside its outline
+PIXEL_BLUR_PX = math.sqrt(1.0 / 12.0)   # a pixel's own blur (a box one pixel wide: its standard deviation)
                                # (about 1.5 robust sigmas of the edge points' scatter on a true rim, 0.3 px)
 PICK_HIGHLIGHT_WEIGHT = 0.1    # choosing the chrome sphere: per unit of highlight likelihood (strikes) ...
 PICK_RADIUS_WEIGHT = 0.1       # ... and per unit of log radius (a chrome sphere's reflections are smaller circles)
@@ -173,6 +176,41 @@ def edge_sigma_px(lin: np.ndarray) -> float:
     return float(np.clip(need, EDGE_SIGMA_PX, EDGE_SIGMA_MAX_PX))
 
 
+def edge_blur_px(image: np.ndarray) -> float:
+    """How wide an outline's edge is in :func:`_edge_image` (pixels, a Gaussian's sigma):
+    the smoothing :func:`edge_sigma_px` and the pixel's own box, :data:`PIXEL_BLUR_PX`,
+    in quadrature (a lens's blur is not known and not counted)."""
+    lin = np.asarray(image, np.float64)[..., :3]
+    lin = np.clip(lin * _exposure(lin), 0.0, 1.0)
+    return math.hypot(edge_sigma_px(lin), PIXEL_BLUR_PX)
+
+
+def chrome_rim_shift_px(image: np.ndarray) -> float:
+    """How far inside a mirror sphere's outline its rim's edges lie in ``image`` (pixels):
+    :data:`CHROME_RIM_SHIFT` blur widths (:func:`edge_blur_px`). A mirror's rim reflects
+    what lies right behind it, so the image is nearly continuous across the outline and
+    the contrast grows inward: the blurred edge's steepest point, where
+    :func:`edge_points` puts it, lies inside (on the harder probe set's true outlines
+    0.12-0.25 px inside for a blur of 0.58-1.5 px, about 0.2 blur widths; the outermost-rim
+    fit's circles 0.17 px small at the median, nine in ten of them too small; on a uniform
+    disc 0.02 px: the shift is the mirror's, not the method's). See docs/probe.md,
+    sixteenth round."""
+    return CHROME_RIM_SHIFT * edge_blur_px(image)
+
+
+def outline_from_rim(camera: Camera, sphere: Sphere, shift_px: float) -> Sphere:
+    """The sphere whose outline lies ``shift_px`` outside ``sphere``'s (each outline point
+    moved that far out from its centre): a mirror sphere's outline from the one fitted to
+    its rim's edges (:func:`chrome_rim_shift_px`)."""
+    if shift_px == 0.0:
+        return sphere
+    cx, cy, _ = outline_circle(camera, sphere)
+    x, y = outline_polygon(camera, sphere, 64)
+    dist = np.hypot(x - cx, y - cy)
+    grown = fit_sphere(camera, x + shift_px * (x - cx) / dist, y + shift_px * (y - cy) / dist, robust=False)
+    return Sphere(grown.centre, grown.radius, sphere.outline_rms_px, sphere.outline_points)
+
+
 def _exposure(image: np.ndarray) -> float:
     """Scale putting the 99th percentile of luminance at 0.5, so that a dark photo's
     outlines count as much as a bright one's and a clipped highlight's flare less."""
@@ -268,15 +306,18 @@ def outline_fit_px(smoothed: np.ndarray, camera: Camera, sphere: Sphere, x, y) -
     return float(np.mean(np.minimum(np.abs(_outline_distance(camera, sphere, x, y)), 1.5)))
 
 
-def constrained_refinement(image: np.ndarray, camera: Camera, circle, tolerance_px: float
-                           ) -> tuple[Sphere, dict]:
+def constrained_refinement(image: np.ndarray, camera: Camera, circle, tolerance_px: float,
+                           rim_shift_px: float = 0.0) -> tuple[Sphere, dict]:
     """Refine a given circle ``(cx, cy, r)`` on the image's edges within ``tolerance_px``:
     the edge fit (:func:`refine_sphere`, started from the circle) is pulled back so that
     its centre moves and its radius changes by at most ``tolerance_px``, and it is kept
     only when the outline's misfit to the edges near the circle
     (:func:`outline_fit_px`) is smaller than the given circle's. Returns the sphere and
     a report: ``tolerance_px``, ``accepted``, ``moved_px``, ``radius_change_px``,
-    ``fit_given_px``, ``fit_refined_px`` (or ``reason`` when no fit was possible)."""
+    ``fit_given_px``, ``fit_refined_px`` (or ``reason`` when no fit was possible).
+    ``rim_shift_px``: how far inside the outline its edges lie (a mirror sphere's,
+    :func:`chrome_rim_shift_px`; the fit and the misfits are of the outline the edges
+    then imply)."""
     guess = sphere_from_circle(camera, *circle)
     report = {"tolerance_px": float(tolerance_px), "accepted": False}
     smoothed = _edge_image(image)
@@ -285,7 +326,7 @@ def constrained_refinement(image: np.ndarray, camera: Camera, circle, tolerance_
     except ProbeError as exc:
         report["reason"] = str(exc)
         return guess, report
-    cx, cy, r = outline_circle(camera, fitted)
+    cx, cy, r = outline_circle(camera, outline_from_rim(camera, fitted, rim_shift_px))
     dx, dy, dr = cx - circle[0], cy - circle[1], r - circle[2]
     shift = math.hypot(dx, dy)
     if shift > tolerance_px:
@@ -296,6 +337,9 @@ def constrained_refinement(image: np.ndarray, camera: Camera, circle, tolerance_
     if x.size < 0.2 * EDGE_ANGLES:
         report["reason"] = "too little of the outline is visible as an edge"
         return guess, report
+    if rim_shift_px:     # where the outline lies, seen from each rim edge
+        out = rim_shift_px / np.maximum(np.hypot(x - circle[0], y - circle[1]), 1e-9)
+        x, y = x + out * (x - circle[0]), y + out * (y - circle[1])
     given_fit = outline_fit_px(smoothed, camera, guess, x, y)
     refined_fit = outline_fit_px(smoothed, camera, candidate, x, y)
     report.update(moved_px=round(math.hypot(dx, dy), 4), radius_change_px=round(dr, 4),

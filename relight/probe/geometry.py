@@ -28,7 +28,7 @@ from __future__ import annotations
 __all__ = [
     "HIGHLIGHT_FRACTION", "TIE_FRACTION", "MAX_LIGHT_SPREAD_DEG", "CORE_RIM_PX", "MERGED_FRACTION",
     "RIM_EXCLUDE_PX", "MAX_RIM_ANGLE_DEG", "ISOLATION_RING_PX", "ISOLATION_LEVEL", "ISOLATION_WEIGHT",
-    "LIT_FRACTION", "DIFFUSE_RIM_FRACTION", "ORTHO_DEPTH",
+    "UNCLIPPED_STRIKE", "LIT_FRACTION", "DIFFUSE_RIM_FRACTION", "ORTHO_DEPTH",
     "OUTLINE_LOSS_SCALE_PX", "Camera", "Sphere", "sphere_from_cone", "sphere_from_circle", "fit_sphere",
     "mask_outline_points", "sphere_from_mask", "outline_circle", "outline_polygon", "bounding_box", "surface",
     "reflected_direction", "predict_highlight", "Highlight", "sphere_pixels", "locate_highlight",
@@ -63,6 +63,7 @@ AMBIGUITY_MARGIN = 0.5         # two highlight candidates within this score of e
 ISOLATION_RING_PX = (2, 3)     # a candidate's surroundings: pixels 2-3 px from it (past its blur) ...
 ISOLATION_LEVEL = 0.1          # ... whose 90th percentile above 10% of the candidate's peak ...
 ISOLATION_WEIGHT = 1.5         # ... costs 1.5 score units per unit of that share (a lit surface continues)
+UNCLIPPED_STRIKE = 1.0         # in an image that clips on the sphere, a candidate that does not: one strike
 MIRROR_SHARE = 0.25            # beside a clipped core, a pixel whose mirror image holds under 25% of it is not the light
 DOWNHILL_MARGIN = 0.05         # a highlight's blur pixel has no neighbour outside it brighter by 5% of its peak
 
@@ -383,7 +384,7 @@ def highlight_likelihood(image: np.ndarray, camera: Camera, sphere: Sphere) -> f
 
 
 def _scored_cores(camera: Camera, sphere: Sphere, crop: np.ndarray, usable: np.ndarray, s: dict,
-                  offset: tuple[int, int], peak: float, expect_to_light):
+                  offset: tuple[int, int], peak: float, expect_to_light, clip_level: float | None = None):
     """The brightest cores of a sphere's crop (connected pixels within
     :data:`TIE_FRACTION` of ``peak``: clipped blobs, or the peak pixel of an unclipped
     image), each scored by what a small light predicts (:func:`_core_scores`). Returns
@@ -397,7 +398,7 @@ def _scored_cores(camera: Camera, sphere: Sphere, crop: np.ndarray, usable: np.n
         camera, sphere, cxs + x0 + 0.5, cys + y0 + 0.5)))))
     spread_limit = MAX_LIGHT_SPREAD_DEG + 3.0 * footprint_deg
     scores, core_dirs = _core_scores(camera, sphere, crop, cores, core_index, s, (x0, y0), spread_limit,
-                                     expect_to_light, usable)
+                                     expect_to_light, usable, clip_level)
     return cores, core_index, scores, core_dirs, spread_limit
 
 
@@ -450,7 +451,7 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     labels, count = ndimage.label(usable & (crop >= HIGHLIGHT_FRACTION * peak), np.ones((3, 3)))
     refl = s["reflect"]
     cores, core_index, scores, core_dirs, spread_limit = _scored_cores(
-        camera, sphere, crop, usable, s, (x0, y0), peak, expect_to_light)
+        camera, sphere, crop, usable, s, (x0, y0), peak, expect_to_light, clip_level)
     order = np.argsort(-scores)
     best_core = cores == int(core_index[order[0]])
     rival = None
@@ -643,7 +644,8 @@ def _soft_window_centroid(crop: np.ndarray, usable: np.ndarray, start: tuple[flo
 
 def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.ndarray, index: np.ndarray,
                  s: dict, origin: tuple[int, int], spread_limit: float, expect_to_light=None,
-                 usable: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                 usable: np.ndarray | None = None, clip_level: float | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
     """How much each brightest blob (``cores`` labels ``index``) looks like a small
     light's highlight, and its reflected direction (intensity-weighted mean).
 
@@ -655,9 +657,14 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
     standing alone (:func:`_surround_share` of the ``usable`` pixels around it: a lit
     surface's clipped patch continues into bright surroundings), and,
     when ``expect_to_light`` (a diffuse sphere's shading direction) is given, near that
-    direction. In a linear HDR image a dimmer blob loses by its brightness too. Scores
-    are log-likelihood-like: 0 is a perfect candidate, each unit a clear strike."""
+    direction. In a linear HDR image a dimmer blob loses by its brightness too; in one
+    that clips (``clip_level``, reached on the sphere) a blob that does not clip takes
+    :data:`UNCLIPPED_STRIKE`: it is known to be dimmer than one that does, while a small
+    light, hundreds of times brighter than the lit surfaces it shines on, clips wherever
+    it reaches even when it covers a fraction of a pixel. Scores are
+    log-likelihood-like: 0 is a perfect candidate, each unit a clear strike."""
     peak = float(crop[cores > 0].max())
+    clip_at = None if clip_level is None or peak < 0.995 * clip_level else 0.995 * clip_level
     if usable is None:
         usable = np.ones(crop.shape, bool)
     refl = s["reflect"]
@@ -684,6 +691,8 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
             angle = math.degrees(math.acos(float(np.clip(d @ (e / np.linalg.norm(e)), -1.0, 1.0))))
             score -= max(0.0, angle - 15.0) / 30.0
         score += 2.0 * math.log10(max(float(w.max()), 1e-12) / peak)   # HDR: a dimmer blob is less likely
+        if clip_at is not None and float(w.max()) < clip_at:
+            score -= UNCLIPPED_STRIKE
         score += 0.05 * math.log10(ys.size)                             # ties: the larger blob (a brighter light)
         scores.append(score)
     return np.asarray(scores), np.asarray(dirs)

@@ -102,7 +102,10 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
         geom.bounding_box(camera, guess)
         if not refine or tolerance_px <= 0:
             return guess, None, "circle", {"tolerance_px": 0.0, "accepted": False}
-        sphere, report = detect.constrained_refinement(image, camera, circle, tolerance_px)
+        rim = detect.chrome_rim_shift_px(image) if kind == "chrome" else 0.0
+        sphere, report = detect.constrained_refinement(image, camera, circle, tolerance_px, rim)
+        if rim:
+            report["rim_shift_px"] = round(rim, 4)
         how = "circle refined on edges" if report["accepted"] else "circle (as given)"
         return sphere, None, how, report
     if candidates is None:
@@ -135,10 +138,15 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
     if "checked_from" in found:   # the outline the learned outline check moved it from
         report["checked_from"] = found["checked_from"]
     rival, margin = detect.rival_sphere(candidates, found, kind, exclude) if kind == "chrome" else (None, 0.0)
+    rim = 0.0
+    if kind == "chrome":   # the outline, from the circle fitted to the rim's edges (detect.chrome_rim_shift_px)
+        rim = detect.chrome_rim_shift_px(image if clip_level is not None else detect.exposed_like_a_camera(image))
+        report["rim_shift_px"] = round(rim, 4)
     if rival is not None and margin < detect.DETECTION_MARGIN:
         # another circle scores nearly as well: the detection is ambiguous (see run_probe)
-        report.update(ambiguity=1.0 - margin / detect.DETECTION_MARGIN, rival=rival["sphere"])
-    return found["sphere"], None, "detected", report
+        report.update(ambiguity=1.0 - margin / detect.DETECTION_MARGIN,
+                      rival=detect.outline_from_rim(camera, rival["sphere"], rim))
+    return detect.outline_from_rim(camera, found["sphere"], rim), None, "detected", report
 
 
 def run_probe(cfg: ProbeConfig) -> ProbeResult:
@@ -203,6 +211,7 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
         entry["chrome_circle"] = [round(v, 3) for v in chrome_circle]
         entry["chrome_found_by"] = found
         if found == "detected":
+            entry["chrome_rim_shift_px"] = refinement["rim_shift_px"]
             if "locator_circle" in refinement:
                 p = refinement.get("locator_probability")   # None: a circle too large for it to judge
                 entry["locator"] = {"circle": [round(v, 2) for v in refinement["locator_circle"]],
