@@ -817,6 +817,25 @@ def test_a_clipped_highlight_proposes_its_circles_when_the_proposals_overflow(mo
     assert found(new, dark) and found(new, faint)
 
 
+def test_a_back_lit_small_mirrors_clipped_highlight_by_the_rim_counts_as_clipped():
+    # a 10 px mirror sphere lit from 116 deg off the view: its clipped highlight lies 1.4 px
+    # inside the outline, among the pixels the highlight is looked for in (all but the
+    # outermost RIM_EXCLUDE_PX); the chrome test sees it clip (it once left 1.5 px out, and
+    # the sphere, its only bright spot unread, was neither chrome nor found)
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 60.0, 2.6)
+    to_cam = -sphere.c / np.linalg.norm(sphere.c)
+    up = np.array([0.0, 1.0, 0.0]) - to_cam[1] * to_cam
+    up /= np.linalg.norm(up)
+    light = math.cos(math.radians(116.0)) * to_cam + math.sin(math.radians(116.0)) * up
+    spot, _ = pg.predict_highlight(cam, sphere, light)
+    cx, cy, r = detect.outline_circle(cam, sphere)
+    assert 9.5 < r < 10.5 and 1.2 < r - math.dist(spot, (cx, cy)) < 1.5
+    f = detect.sphere_features(_quantise(_render(cam, sphere, light, light_radius_deg=2.0)), cam, sphere, 1.0)
+    assert f["clipped"] and f["clip_contrast"] > detect.CHROME_MIN_CLIPPED_CONTRAST
+    assert f["contrast"] < f["clip_contrast"]
+
+
 def test_a_circle_chrome_only_by_the_clip_allowance_around_a_sphere_goes():
     # a large circle around a chrome sphere holds its clipped highlight and, on a bright
     # background, passes the chrome test only by the clipped allowance: the better supported

@@ -89,6 +89,10 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
     ``tolerance_px`` of its centre and radius, and the refinement is kept only when the
     outline then fits the edges better than the given circle
     (:func:`relight.probe.detect.constrained_refinement`); ``refinement`` reports it.
+    A chrome sphere's rim edges lie inside its outline (it mirrors what lies behind it):
+    a detected chrome outline is the circle fitted to them moved out by
+    :func:`relight.probe.detect.chrome_rim_shift_px`, and a given circle's refinement
+    fits the outline those edges imply (``rim_shift_px`` in the report).
     A detected chrome sphere's ``refinement`` holds the detection's ``ambiguity`` (0-1) and
     the ``rival`` sphere when another circle scores within :data:`relight.probe.detect.DETECTION_MARGIN`
     of the one chosen (:func:`relight.probe.detect.rival_sphere`), and (``use_locator``) the
