@@ -69,7 +69,6 @@ GROW_FINE_RADII = (1.1,)       # ... and, when none of those grows, this finer s
 GROW_MIN_SUPPORT_RATIO = 0.8   # ... and kept with at least 80% of its edge support,
 GROW_ROUNDS = 3                # ... again from the larger one, up to three times
 CHECK_MOVE = 0.1               # the learned outline check's circle this far from a chrome outline: fitted again there
-CHECK_ROUNDS = 3               # ... and again from there while the check comes nearer to agreeing, at most 3 times
 CHROME_INSIDE_PX = 0.5         # a chrome outline's edge points further inside than this are reflections
                                # (about 1.5 robust sigmas of the edge points' scatter on a true rim, 0.3 px)
 CHROME_RIM_SHIFT = 0.3         # a mirror sphere's rim edges lie this many blur widths inside its outline
@@ -746,35 +745,26 @@ def _checked_outline(image: np.ndarray, camera: Camera, cand: dict, smoothed: np
     :func:`outer_rim_fit`), it replaces the candidate when it is chrome, edge-supported and
     the check, asked again from it, finds it nearer to where it belongs than the candidate
     was (an edge fit started on the contact shadow's circle stays there; started from the
-    sphere, it keeps to the sphere). From there the check is asked again, and the outline
-    fitted again where it then puts the sphere, while it comes nearer to agreeing (at most
-    :data:`CHECK_ROUNDS` fits): from far off the network sees only part of the way. It
-    keeps the better of the two edge supports, the pair's evidence (as a grown outline
-    keeps its inner circle's)."""
-    best = cand
+    sphere, it keeps to the sphere). It keeps the better of the two edge supports, the
+    pair's evidence (as a grown outline keeps its inner circle's)."""
     first = check([cand["circle"]])[0]
-    for _ in range(CHECK_ROUNDS):
-        gap = _circle_gap(best["circle"], first)
-        if gap <= CHECK_MOVE:
-            break
-        try:
-            guess = sphere_from_circle(camera, *first)
-            sphere, support = refine_sphere(image, camera, guess, smoothed, first_band_px=max(2.0, 0.1 * first[2]))
-        except ProbeError:
-            break
-        sphere = outer_rim_fit(smoothed, camera, sphere)
-        circle = outline_circle(camera, sphere)
-        again = check([circle])[0]
-        if support < MIN_EDGE_SUPPORT or _circle_gap(circle, again) >= gap:
-            break
-        f = sphere_features(image, camera, sphere, clip_level)
-        if not is_chrome(f):
-            break
-        # the pair's evidence, as a grown outline's: the better supported of the two stays
-        best = {**cand, **f, "sphere": sphere, "circle": circle, "edge_support": max(support, cand["edge_support"]),
-                "chrome": True, "diffuse": is_diffuse(f), "checked_from": cand["circle"]}
-        first = again
-    return best
+    if _circle_gap(cand["circle"], first) <= CHECK_MOVE:
+        return cand
+    try:
+        guess = sphere_from_circle(camera, *first)
+        sphere, support = refine_sphere(image, camera, guess, smoothed, first_band_px=max(2.0, 0.1 * first[2]))
+    except ProbeError:
+        return cand
+    sphere = outer_rim_fit(smoothed, camera, sphere)
+    circle = outline_circle(camera, sphere)
+    if support < MIN_EDGE_SUPPORT or _circle_gap(circle, check([circle])[0]) >= _circle_gap(cand["circle"], first):
+        return cand
+    f = sphere_features(image, camera, sphere, clip_level)
+    if not is_chrome(f):
+        return cand
+    # the pair's evidence, as a grown outline's: the better supported of the two stays
+    return {**cand, **f, "sphere": sphere, "circle": circle, "edge_support": max(support, cand["edge_support"]),
+            "chrome": True, "diffuse": is_diffuse(f), "checked_from": cand["circle"]}
 
 
 def outer_rim_fit(smoothed: np.ndarray, camera: Camera, sphere: Sphere) -> Sphere:
