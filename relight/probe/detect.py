@@ -24,7 +24,7 @@ __all__ = [
     "MAX_RADIUS_FRACTION", "MAX_CANDIDATES", "SPOT_PROPOSALS", "CLIPPED_SPOT_PROPOSALS", "CHROME_MIN_CONTRAST",
     "CHROME_MAX_BLOB_FRACTION", "CHROME_MIN_EXCESS", "CHROME_MIN_CLIPPED_CONTRAST", "CLIP_FRACTION", "DIFFUSE_MAX_RESIDUAL", "TRIM_FRACTION",
     "read_probe_image", "load_mask", "edge_points", "refine_sphere", "sphere_features", "hough_circles",
-    "camera_exposure", "exposed_like_a_camera", "HDR_CLIP_SHARE", "find_spheres", "is_chrome", "is_diffuse", "pick_sphere",
+    "camera_exposure", "exposed_like_a_camera", "detection_view", "HDR_CLIP_SHARE", "find_spheres", "is_chrome", "is_diffuse", "pick_sphere",
     "outline_fit_px", "constrained_refinement", "GROW_RADII", "GROW_FINE_RADII", "GROW_MIN_SUPPORT_RATIO", "GROW_ROUNDS",
     "PICK_HIGHLIGHT_WEIGHT", "PICK_RADIUS_WEIGHT", "CHROME_INSIDE_PX", "outer_rim_fit", "DETECTION_MARGIN",
     "rival_sphere", "share_the_rest", "CHROME_RIM_SHIFT", "PIXEL_BLUR_PX", "edge_blur_px", "chrome_rim_shift_px",
@@ -137,10 +137,15 @@ def _edge_image(image: np.ndarray) -> np.ndarray:
     """The image in which outlines are located: linear (a blur moves no edge there, while
     the sRGB curve would push each edge toward its dark side), exposed by
     :func:`_exposure`, clipped, smoothed by :func:`edge_sigma_px` of its own noise."""
-    lin = np.asarray(image, np.float64)[..., :3]
-    lin = np.clip(lin * _exposure(lin), 0.0, 1.0)
+    lin = _exposed_for_edges(image)
     sigma = edge_sigma_px(lin)
     return ndimage.gaussian_filter(lin, (sigma, sigma, 0))
+
+
+def _exposed_for_edges(image: np.ndarray) -> np.ndarray:
+    """Linear RGB exposed by :func:`_exposure` and clipped: what :func:`_edge_image` smooths."""
+    lin = np.asarray(image, np.float64)[..., :3]
+    return np.clip(lin * _exposure(lin), 0.0, 1.0)
 
 
 def image_noise(lin: np.ndarray) -> float:
@@ -180,9 +185,7 @@ def edge_blur_px(image: np.ndarray) -> float:
     """How wide an outline's edge is in :func:`_edge_image` (pixels, a Gaussian's sigma):
     the smoothing :func:`edge_sigma_px` and the pixel's own box, :data:`PIXEL_BLUR_PX`,
     in quadrature (a lens's blur is not known and not counted)."""
-    lin = np.asarray(image, np.float64)[..., :3]
-    lin = np.clip(lin * _exposure(lin), 0.0, 1.0)
-    return math.hypot(edge_sigma_px(lin), PIXEL_BLUR_PX)
+    return math.hypot(edge_sigma_px(_exposed_for_edges(image)), PIXEL_BLUR_PX)
 
 
 def chrome_rim_shift_px(image: np.ndarray) -> float:
@@ -543,6 +546,15 @@ def exposed_like_a_camera(image: np.ndarray) -> np.ndarray:
     return np.clip(np.asarray(image, np.float64) * camera_exposure(image), 0.0, 1.0)
 
 
+def detection_view(image: np.ndarray, clip_level: float | None) -> tuple[np.ndarray, float]:
+    """The image automatic detection searches, and its clip level: a linear HDR one
+    (``clip_level`` None, it does not clip) as a camera would have exposed it
+    (:func:`exposed_like_a_camera`, clipping at 1), any other as it is."""
+    if clip_level is None:
+        return exposed_like_a_camera(image), 1.0
+    return image, clip_level
+
+
 def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = None, extra=(),
                  radius_bound=None, outline_check=None) -> list[dict]:
     """Refined sphere candidates with their features: ``sphere``, ``edge_support``,
@@ -562,8 +574,7 @@ def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = N
     ``outline_check``: ``(n, 3) circles -> (n, 3) circles``, where the chrome sphere's circle
     lies seen from each (the learned outline check's, :mod:`relight.probe.outline_check`),
     a second start for a chrome outline's fit (:func:`_checked_outline`)."""
-    if clip_level is None:   # linear HDR: look for spheres in the image a camera would have taken
-        image, clip_level = exposed_like_a_camera(image), 1.0
+    image, clip_level = detection_view(image, clip_level)
     smoothed = _edge_image(image)
     out: list[dict] = []
     refined: list[tuple] = []

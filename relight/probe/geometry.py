@@ -28,7 +28,7 @@ from __future__ import annotations
 __all__ = [
     "HIGHLIGHT_FRACTION", "TIE_FRACTION", "MAX_LIGHT_SPREAD_DEG", "CORE_RIM_PX", "MERGED_FRACTION",
     "RIM_EXCLUDE_PX", "MAX_RIM_ANGLE_DEG", "ISOLATION_RING_PX", "ISOLATION_LEVEL", "ISOLATION_WEIGHT",
-    "UNCLIPPED_STRIKE", "LIT_FRACTION", "DIFFUSE_RIM_FRACTION", "ORTHO_DEPTH",
+    "CLIPS_AT", "UNCLIPPED_STRIKE", "LIT_FRACTION", "DIFFUSE_RIM_FRACTION", "ORTHO_DEPTH",
     "OUTLINE_LOSS_SCALE_PX", "Camera", "Sphere", "sphere_from_cone", "sphere_from_circle", "fit_sphere",
     "mask_outline_points", "sphere_from_mask", "outline_circle", "outline_polygon", "bounding_box", "surface",
     "reflected_direction", "predict_highlight", "Highlight", "sphere_pixels", "locate_highlight",
@@ -63,6 +63,7 @@ AMBIGUITY_MARGIN = 0.5         # two highlight candidates within this score of e
 ISOLATION_RING_PX = (2, 3)     # a candidate's surroundings: pixels 2-3 px from it (past its blur) ...
 ISOLATION_LEVEL = 0.1          # ... whose 90th percentile above 10% of the candidate's peak ...
 ISOLATION_WEIGHT = 1.5         # ... costs 1.5 score units per unit of that share (a lit surface continues)
+CLIPS_AT = 0.995               # a luminance within 0.5% of the clip level clips
 UNCLIPPED_STRIKE = 1.0         # in an image that clips on the sphere, a candidate that does not: one strike
 MIRROR_SHARE = 0.25            # beside a clipped core, a pixel whose mirror image holds under 25% of it is not the light
 DOWNHILL_MARGIN = 0.05         # a highlight's blur pixel has no neighbour outside it brighter by 5% of its peak
@@ -491,7 +492,7 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     # in an image that clips, a light far above the clip level clips wherever it reaches:
     # its pixels are the clipped core, and what else stands above half the peak beside it
     # (a lit edge's reflection touching it) is not the light, however few its pixels
-    clips = clip_level is not None and peak >= 0.995 * clip_level
+    clips = clip_level is not None and peak >= CLIPS_AT * clip_level
     light_pixels = best_core if clips else region
     compact = _spread_deg(refl[light_pixels]) <= spread_limit
     if compact and (region.sum() <= SMALL_HIGHLIGHT_PX
@@ -532,7 +533,7 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
         # a small highlight: the lens blurs it symmetrically in the image, not in directions
         to_light = at_centroid["reflect"][0]
     cos_view = float(np.average(s["cos_view"][ys, xs], weights=w))
-    clipped = clip_level is not None and int((crop[region] >= 0.995 * clip_level).sum()) >= 2
+    clipped = clip_level is not None and int((crop[region] >= CLIPS_AT * clip_level).sum()) >= 2
     spread_deg = _spread_deg(refl[region])
     quality = {
         "highlight_px": [px, py],
@@ -664,7 +665,7 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
     it reaches even when it covers a fraction of a pixel. Scores are
     log-likelihood-like: 0 is a perfect candidate, each unit a clear strike."""
     peak = float(crop[cores > 0].max())
-    clip_at = None if clip_level is None or peak < 0.995 * clip_level else 0.995 * clip_level
+    clip_at = None if clip_level is None or peak < CLIPS_AT * clip_level else CLIPS_AT * clip_level
     if usable is None:
         usable = np.ones(crop.shape, bool)
     refl = s["reflect"]

@@ -144,7 +144,7 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
     rival, margin = detect.rival_sphere(candidates, found, kind, exclude) if kind == "chrome" else (None, 0.0)
     rim = 0.0
     if kind == "chrome":   # the outline, from the circle fitted to the rim's edges (detect.chrome_rim_shift_px)
-        rim = detect.chrome_rim_shift_px(image if clip_level is not None else detect.exposed_like_a_camera(image))
+        rim = detect.chrome_rim_shift_px(detect.detection_view(image, clip_level)[0])
         report["rim_shift_px"] = round(rim, 4)
     if rival is not None and margin < detect.DETECTION_MARGIN:
         # another circle scores nearly as well: the detection is ambiguous (see run_probe)
