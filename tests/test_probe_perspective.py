@@ -220,6 +220,36 @@ def test_unlit_gray_sphere_falls_back_to_the_chrome_sphere(small_render, tmp_pat
     assert _one_error_line(capsys) and not alone.exists()
 
 
+def test_diffuse_sphere_searched_and_not_found(tmp_path, capsys):
+    """A gray sphere searched for in the chrome sphere's image (``--diffuse`` the same
+    image, no circle) and not there (painted out with its surroundings): the chrome
+    sphere still gives the direction, the entry says why the colour is white, the command
+    line notes it; searched for alone it is a one-line error (exit 2)."""
+    import cv2
+    from relight.imageio import write_png
+    from relight.verify import probe_scenes
+    scene = probe_scenes.sample_probe_scene(3, width=256, height=192, front=True, fov_deg=40.0)   # no clutter
+    path = tmp_path / "scene.png"
+    write_png(path, probe_scenes.render_probe_scene(scene, spp=16))
+    image = cv2.imread(str(path))
+    cx, cy, r = scene.circle("gray")
+    hole = np.zeros(image.shape[:2], np.uint8)
+    cv2.circle(hole, (round(cx), round(cy)), round(r + 3), 255, -1)
+    painted = tmp_path / "no_gray.png"
+    cv2.imwrite(str(painted), cv2.inpaint(image, hole, 5, cv2.INPAINT_TELEA))
+    out = tmp_path / "p.json"
+    assert main(["probe", "--chrome", str(painted), "--diffuse", str(painted), "--fov", str(scene.fov_deg),
+                 "--out", str(out)]) == 0
+    entry = json.loads(out.read_text())["predictions"][0]
+    assert "no diffuse sphere" in entry["diffuse_skipped"] and entry["method"] == "chrome"
+    assert "diffuse_circle" not in entry and entry["rgb"] == pytest.approx([1 / math.sqrt(3)] * 3)
+    assert _angle(entry["to_light_camera"], scene.to_light) < RENDER_DIR_TOL_DEG
+    assert "note: the diffuse sphere was not measured" in capsys.readouterr().out
+    alone = tmp_path / "alone.json"
+    assert _run(["probe", "--diffuse", str(painted), "--fov", str(scene.fov_deg), "--out", str(alone)]) == 2
+    assert _one_error_line(capsys) and not alone.exists()
+
+
 def test_linear_16_bit_png(tmp_path):
     import cv2
     cam = pg.Camera.from_fov(W, H, FOV_DEG)

@@ -183,26 +183,36 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
         image, d_clip = (result.chrome_image, clip) if same else detect.read_probe_image(cfg.diffuse, cfg.linear)[:2]
         camera = cfg.camera(image.shape[1], image.shape[0])
         exclude = [chrome_circle] if same and chrome_circle is not None else []
-        sphere, mask, found, refinement = locate_sphere(image, camera, "diffuse", cfg.diffuse_circle,
-                                                        cfg.diffuse_mask, cfg.refine, exclude,
-                                                        candidates if same else None, cfg.circle_tolerance_px,
-                                                        d_clip)
-        entry["diffuse_circle"] = [round(v, 3) for v in detect.outline_circle(camera, sphere)]
-        entry["diffuse_found_by"] = found
-        if refinement:
-            entry["diffuse_circle_refinement"] = refinement
+        searched = cfg.diffuse_circle is None and cfg.diffuse_mask is None
         try:
-            d_dir, rgb, info = geom.diffuse_light(image, camera, sphere, mask)
+            sphere, mask, found, refinement = locate_sphere(image, camera, "diffuse", cfg.diffuse_circle,
+                                                            cfg.diffuse_mask, cfg.refine, exclude,
+                                                            candidates if same else None, cfg.circle_tolerance_px,
+                                                            d_clip)
         except ProbeError as exc:
-            if not cfg.chrome:
+            if not (cfg.chrome and searched):
                 raise
-            # the chrome sphere alone still gives the direction (the light behind the gray
-            # sphere, or its lit side hidden): say so, and the colour stays white
+            # searched for and not found: the chrome sphere still gives the direction, as
+            # when the diffuse sphere is found but unusable (below)
             entry["diffuse_skipped"] = str(exc)
-        else:
-            entry["diffuse_to_light_camera"] = [round(float(v), 6) for v in d_dir]
-            entry["diffuse_fit"] = {k: round(v, 4) if isinstance(v, float) else v for k, v in info.items()}
-        result.diffuse_image, result.diffuse_sphere = image, sphere
+            sphere = None
+        if sphere is not None:
+            entry["diffuse_circle"] = [round(v, 3) for v in detect.outline_circle(camera, sphere)]
+            entry["diffuse_found_by"] = found
+            if refinement:
+                entry["diffuse_circle_refinement"] = refinement
+            try:
+                d_dir, rgb, info = geom.diffuse_light(image, camera, sphere, mask)
+            except ProbeError as exc:
+                if not cfg.chrome:
+                    raise
+                # the chrome sphere alone still gives the direction (the light behind the gray
+                # sphere, or its lit side hidden): say so, and the colour stays white
+                entry["diffuse_skipped"] = str(exc)
+            else:
+                entry["diffuse_to_light_camera"] = [round(float(v), 6) for v in d_dir]
+                entry["diffuse_fit"] = {k: round(v, 4) if isinstance(v, float) else v for k, v in info.items()}
+            result.diffuse_image, result.diffuse_sphere = image, sphere
         result.camera = result.camera or camera
     if cfg.chrome:
         sphere, mask, found, refinement = chrome_found
