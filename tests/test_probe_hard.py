@@ -706,6 +706,21 @@ def test_chrome_outline_follows_the_outermost_edges(half_angle_deg, depth_px):
         assert math.dist(outer[:2], true[:2]) < 0.05 and abs(outer[2] - true[2]) < 0.05
 
 
+@pytest.mark.parametrize("half_angle_deg, depth_px", [(45.0, 1.5), (60.0, 1.5), (60.0, 2.0), (0.0, 0.0)])
+def test_the_outer_rim_fit_ends_where_it_settles_wherever_it_starts(half_angle_deg, depth_px):
+    # one pass ends part of the way from an outline pulled in and up (0.07-0.17 px from
+    # where a pass started at the true circle ends); repeated until it settles, both
+    # starts end at the same outline
+    n = 64
+    image, circle = _rim_hidden_below(half_angle_deg, depth_px, n)
+    cam = pg.Camera.from_fov(n, n, 30.0)
+    smoothed = detect._edge_image(image)
+    true = pg.sphere_from_circle(cam, *circle)
+    pulled, _ = detect.refine_sphere(image, cam, true, smoothed)
+    a, b = (detect.outline_circle(cam, detect.outer_rim_fit(smoothed, cam, s)) for s in (pulled, true))
+    assert math.dist(a[:2], b[:2]) < 0.02 and abs(a[2] - b[2]) < 0.02
+
+
 def test_a_mirror_rim_shift_follows_the_edge_blur():
     # closed form: CHROME_RIM_SHIFT blur widths, the blur being the edge smoothing and the
     # pixel's own box (1/sqrt(12) px) in quadrature; a clean image gets the least smoothing

@@ -26,7 +26,7 @@ __all__ = [
     "read_probe_image", "load_mask", "edge_points", "refine_sphere", "sphere_features", "hough_circles",
     "camera_exposure", "exposed_like_a_camera", "detection_view", "HDR_CLIP_SHARE", "find_spheres", "is_chrome", "is_diffuse", "pick_sphere",
     "outline_fit_px", "constrained_refinement", "GROW_RADII", "GROW_FINE_RADII", "GROW_MIN_SUPPORT_RATIO", "GROW_ROUNDS",
-    "PICK_HIGHLIGHT_WEIGHT", "PICK_RADIUS_WEIGHT", "CHROME_INSIDE_PX", "outer_rim_fit", "DETECTION_MARGIN",
+    "PICK_HIGHLIGHT_WEIGHT", "PICK_RADIUS_WEIGHT", "CHROME_INSIDE_PX", "RIM_FIT_ROUNDS", "RIM_FIT_SETTLED_PX", "outer_rim_fit", "DETECTION_MARGIN",
     "rival_sphere", "share_the_rest", "CHROME_RIM_SHIFT", "PIXEL_BLUR_PX", "edge_blur_px", "chrome_rim_shift_px",
     "outline_from_rim",
 ]
@@ -71,6 +71,8 @@ GROW_ROUNDS = 3                # ... again from the larger one, up to three time
 CHECK_MOVE = 0.1               # the learned outline check's circle this far from a chrome outline: fitted again there
 CHROME_INSIDE_PX = 0.5         # a chrome outline's edge points further inside than this are reflections
                                # (about 1.5 robust sigmas of the edge points' scatter on a true rim, 0.3 px)
+RIM_FIT_ROUNDS = 3             # a chrome outline's fit to its outermost edges repeated from its own outline at most this often,
+RIM_FIT_SETTLED_PX = 0.01      # ... until it moves less than this
 CHROME_RIM_SHIFT = 0.3         # a mirror sphere's rim edges lie this many blur widths inside its outline
 PIXEL_BLUR_PX = math.sqrt(1.0 / 12.0)   # a pixel's own blur (a box one pixel wide: its standard deviation)
 PICK_HIGHLIGHT_WEIGHT = 0.1    # choosing the chrome sphere: per unit of highlight likelihood (strikes) ...
@@ -779,7 +781,31 @@ def _checked_outline(image: np.ndarray, camera: Camera, cand: dict, smoothed: np
 
 
 def outer_rim_fit(smoothed: np.ndarray, camera: Camera, sphere: Sphere) -> Sphere:
-    """A chrome sphere's outline fitted to its outermost edges: where its rim mirrors what
+    """A chrome sphere's outline fitted to its outermost edges (:func:`_outer_rim_pass`),
+    the fit repeated from its own outline until it settles (moves less than
+    :data:`RIM_FIT_SETTLED_PX`; at most :data:`RIM_FIT_ROUNDS` passes): each pass searches
+    the edges around the outline the last one found, and one pass started from an outline
+    that inner edges pulled in and up ends part of the way. Returns ``sphere`` itself when
+    the first pass finds no fit, or the outline would end more than 15% of the radius from
+    it (a different circle)."""
+    cx0, cy0, r0 = outline_circle(camera, sphere)
+    fitted = sphere
+    for _ in range(RIM_FIT_ROUNDS):
+        new = _outer_rim_pass(smoothed, camera, fitted)
+        if new is fitted:
+            break
+        a, b = outline_circle(camera, fitted), outline_circle(camera, new)
+        fitted = new
+        if max(math.hypot(b[0] - a[0], b[1] - a[1]), abs(b[2] - a[2])) < RIM_FIT_SETTLED_PX:
+            break
+    cx, cy, r = outline_circle(camera, fitted)
+    if math.hypot(cx - cx0, cy - cy0) > 0.15 * r0 or abs(r - r0) > 0.15 * r0:
+        return sphere
+    return fitted
+
+
+def _outer_rim_pass(smoothed: np.ndarray, camera: Camera, sphere: Sphere) -> Sphere:
+    """One pass of :func:`outer_rim_fit`: a chrome sphere's outline fitted to its outermost edges: where its rim mirrors what
     lies right beside it (the floor it stands on and its own contact shadow, below it)
     the rim shows no edge, and the strongest edge near it is a reflection inside (the
     floor's far edge, a lit patch), which pulls a symmetric fit in and up. The outline is
