@@ -73,7 +73,7 @@ CHROME_INSIDE_PX = 0.5         # a chrome outline's edge points further inside t
                                # (about 1.5 robust sigmas of the edge points' scatter on a true rim, 0.3 px)
 RIM_FIT_ROUNDS = 3             # a chrome outline's fit to its outermost edges repeated from its own outline at most this often,
 RIM_FIT_SETTLED_PX = 0.01      # ... until it moves less than this
-CHROME_RIM_SHIFT = 0.3         # a mirror sphere's rim edges lie this many blur widths inside its outline
+CHROME_RIM_SHIFT = 0.2         # a mirror sphere's rim edges lie this many blur widths inside its outline
 PIXEL_BLUR_PX = math.sqrt(1.0 / 12.0)   # a pixel's own blur (a box one pixel wide: its standard deviation)
 PICK_HIGHLIGHT_WEIGHT = 0.1    # choosing the chrome sphere: per unit of highlight likelihood (strikes) ...
 PICK_RADIUS_WEIGHT = 0.1       # ... and per unit of log radius (a chrome sphere's reflections are smaller circles)
@@ -196,10 +196,11 @@ def chrome_rim_shift_px(image: np.ndarray) -> float:
     what lies right behind it, so the image is nearly continuous across the outline and
     the contrast grows inward: the blurred edge's steepest point, where
     :func:`edge_points` puts it, lies inside (on the harder probe set's true outlines
-    0.12-0.25 px inside for a blur of 0.58-1.5 px, about 0.2 blur widths; the outermost-rim
-    fit's circles 0.17 px small at the median, nine in ten of them too small; on a uniform
-    disc 0.02 px: the shift is the mirror's, not the method's). See docs/probe.md,
-    sixteenth round."""
+    0.12-0.25 px inside for a blur of 0.58-1.5 px, about 0.2 blur widths; on a uniform
+    disc 0.02 px: the shift is the mirror's, not the method's). The outermost-rim fit,
+    settled (:func:`outer_rim_fit`), comes out that much small: 0.15 px on the harder
+    set's Cycles renders, 0.11 px on Mitsuba rooms, at the median. See docs/probe.md,
+    sixteenth and seventeenth rounds."""
     return CHROME_RIM_SHIFT * edge_blur_px(image)
 
 
