@@ -806,9 +806,9 @@ def outer_rim_fit(smoothed: np.ndarray, camera: Camera, sphere: Sphere) -> Spher
 
 
 def _outer_rim_pass(smoothed: np.ndarray, camera: Camera, sphere: Sphere) -> Sphere:
-    """One pass of :func:`outer_rim_fit`: a chrome sphere's outline fitted to its outermost edges: where its rim mirrors what
-    lies right beside it (the floor it stands on and its own contact shadow, below it)
-    the rim shows no edge, and the strongest edge near it is a reflection inside (the
+    """One pass of :func:`outer_rim_fit`. Where a chrome sphere's rim mirrors what lies
+    right beside it (the floor it stands on and its own contact shadow, below it) the
+    rim shows no edge, and the strongest edge near it is a reflection inside (the
     floor's far edge, a lit patch), which pulls a symmetric fit in and up. The outline is
     first fitted to the edge points on or outside it; then edge points more than
     :data:`CHROME_INSIDE_PX` inside it are left out, those outside by the usual robust

@@ -166,7 +166,7 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
     direction, rgb, methods = None, np.ones(3) / math.sqrt(3.0), []
     chrome_circle = None
     candidates: list = []      # spheres found automatically, shared when both are in one image
-    chrome_found = None
+    chrome_found, clip = None, None
     if cfg.chrome:
         image, clip, how = detect.read_probe_image(cfg.chrome, cfg.linear)
         if np.asarray(image).max() <= 0:
@@ -179,41 +179,7 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
         result.camera, result.chrome_image = camera, image
     d_dir = None
     if cfg.diffuse:
-        same = cfg.diffuse == cfg.chrome
-        image, d_clip = (result.chrome_image, clip) if same else detect.read_probe_image(cfg.diffuse, cfg.linear)[:2]
-        camera = cfg.camera(image.shape[1], image.shape[0])
-        exclude = [chrome_circle] if same and chrome_circle is not None else []
-        searched = cfg.diffuse_circle is None and cfg.diffuse_mask is None
-        try:
-            sphere, mask, found, refinement = locate_sphere(image, camera, "diffuse", cfg.diffuse_circle,
-                                                            cfg.diffuse_mask, cfg.refine, exclude,
-                                                            candidates if same else None, cfg.circle_tolerance_px,
-                                                            d_clip)
-        except ProbeError as exc:
-            if not (cfg.chrome and searched):
-                raise
-            # searched for and not found: the chrome sphere still gives the direction, as
-            # when the diffuse sphere is found but unusable (below)
-            entry["diffuse_skipped"] = str(exc)
-            sphere = None
-        if sphere is not None:
-            entry["diffuse_circle"] = [round(v, 3) for v in detect.outline_circle(camera, sphere)]
-            entry["diffuse_found_by"] = found
-            if refinement:
-                entry["diffuse_circle_refinement"] = refinement
-            try:
-                d_dir, rgb, info = geom.diffuse_light(image, camera, sphere, mask)
-            except ProbeError as exc:
-                if not cfg.chrome:
-                    raise
-                # the chrome sphere alone still gives the direction (the light behind the gray
-                # sphere, or its lit side hidden): say so, and the colour stays white
-                entry["diffuse_skipped"] = str(exc)
-            else:
-                entry["diffuse_to_light_camera"] = [round(float(v), 6) for v in d_dir]
-                entry["diffuse_fit"] = {k: round(v, 4) if isinstance(v, float) else v for k, v in info.items()}
-            result.diffuse_image, result.diffuse_sphere = image, sphere
-        result.camera = result.camera or camera
+        d_dir, rgb = _measure_diffuse(cfg, entry, result, chrome_circle, clip, candidates)
     if cfg.chrome:
         sphere, mask, found, refinement = chrome_found
         image, camera = result.chrome_image, result.camera
@@ -265,6 +231,48 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
     tilt = cfg.camera_tilt_deg if cfg.camera_tilt_deg is not None else 0.0
     entry["pan_deg"], entry["tilt_deg"] = camera_to_pan_tilt(direction, tilt)
     return result
+
+
+def _measure_diffuse(cfg: ProbeConfig, entry: dict, result: "ProbeResult", chrome_circle, clip,
+                     candidates: list) -> tuple[np.ndarray | None, np.ndarray]:
+    """The diffuse sphere's part of :func:`run_probe`: its circle, its shading direction
+    and the light's colour, written to ``entry``; returns ``(direction or None, rgb)``.
+    With a chrome sphere, a diffuse sphere that cannot be measured (searched for and not
+    found, or found with no lit side left: the light behind it, or its lit side hidden)
+    is skipped and said so (``diffuse_skipped``): the chrome sphere still gives the
+    direction, and the colour stays white. Without one, either is a one-line error."""
+    white = np.ones(3) / math.sqrt(3.0)
+    same = cfg.diffuse == cfg.chrome
+    image, d_clip = (result.chrome_image, clip) if same else detect.read_probe_image(cfg.diffuse, cfg.linear)[:2]
+    camera = cfg.camera(image.shape[1], image.shape[0])
+    result.camera = result.camera or camera
+    exclude = [chrome_circle] if same and chrome_circle is not None else []
+    searched = cfg.diffuse_circle is None and cfg.diffuse_mask is None
+    try:
+        sphere, mask, found, refinement = locate_sphere(image, camera, "diffuse", cfg.diffuse_circle,
+                                                        cfg.diffuse_mask, cfg.refine, exclude,
+                                                        candidates if same else None, cfg.circle_tolerance_px,
+                                                        d_clip)
+    except ProbeError as exc:
+        if not (cfg.chrome and searched):
+            raise
+        entry["diffuse_skipped"] = str(exc)
+        return None, white
+    entry["diffuse_circle"] = [round(v, 3) for v in detect.outline_circle(camera, sphere)]
+    entry["diffuse_found_by"] = found
+    if refinement:
+        entry["diffuse_circle_refinement"] = refinement
+    result.diffuse_image, result.diffuse_sphere = image, sphere
+    try:
+        d_dir, rgb, info = geom.diffuse_light(image, camera, sphere, mask)
+    except ProbeError as exc:
+        if not cfg.chrome:
+            raise
+        entry["diffuse_skipped"] = str(exc)
+        return None, white
+    entry["diffuse_to_light_camera"] = [round(float(v), 6) for v in d_dir]
+    entry["diffuse_fit"] = {k: round(v, 4) if isinstance(v, float) else v for k, v in info.items()}
+    return d_dir, rgb
 
 
 def _detection_ambiguity(entry: dict, result: "ProbeResult", hl: geom.Highlight, report: dict,
