@@ -102,3 +102,18 @@ def test_probe_cli_writes_predictions(tmp_path, capsys):
                  "--out", str(tmp_path / "q.json")]) == 2
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
     assert not (tmp_path / "q.json").exists()
+
+
+@pytest.mark.skipif(not os.path.isdir(DATA), reason="shared/data/psm_spheres not present")
+def test_probe_cli_gray_sphere_alone(tmp_path):
+    # no chrome sphere: the gray sphere's shading gives the direction (coarser than a
+    # mirror's highlight: 2.3 deg from the reference here, within 8)
+    from relight.cli import main
+    from relight.predictions import read_predictions
+    out = tmp_path / "g.json"
+    assert main(["probe", "--diffuse", f"{DATA}/gray.3.png", "--diffuse-mask", f"{DATA}/gray.mask.png",
+                 "--out", str(out)]) == 0
+    pred = read_predictions(out).predictions[0]
+    truth = np.loadtxt(os.path.join(DATA, "lights.txt"), skiprows=1)[3]
+    pan, tilt = frames.camera_to_pan_tilt(truth, 0.0)
+    assert metrics.direction_error_deg(pred.pan_deg, pred.tilt_deg, pan, tilt) < 8.0
