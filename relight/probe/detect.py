@@ -39,7 +39,8 @@ from scipy import ndimage
 
 from relight.colour import srgb_decode, srgb_encode
 from relight.probe.geometry import (RIM_EXCLUDE_PX, TIE_FRACTION, Camera, ProbeError, Sphere, fit_sphere, highlight_likelihood,
-                                    outline_circle, outline_polygon, sphere_from_circle, sphere_pixels)
+                                    outline_circle, outline_polygon, sphere_from_circle, sphere_surface,
+                                    usable_pixels)
 
 EDGE_SIGMA_PX = 0.5            # edge smoothing: at least half a pixel (a sampled Gaussian narrower than that
                                # collapses onto its centre pixel) ...
@@ -376,18 +377,19 @@ def sphere_features(image: np.ndarray, camera: Camera, sphere: Sphere, clip_leve
 
     With the image's ``clip_level`` (8-bit files: 1.0): ``clipped``, whether a pixel of the
     sphere clips in every channel (:data:`CLIP_FRACTION`) among the pixels the highlight is
-    looked for in (:func:`relight.probe.geometry.sphere_pixels`: all but the outermost
+    looked for in (:func:`relight.probe.geometry.usable_pixels`: all but the outermost
     :data:`relight.probe.geometry.RIM_EXCLUDE_PX`, the rim included: a light behind the sphere puts its highlight
     there, outside the pixels the other figures read; seen 120 deg from the view, 0.13
     of the radius from the outline, 1.3 px on a 10 px sphere), and ``clip_contrast``, the
     clip level over the median luminance: a clipped highlight's contrast is at least that,
     whatever it really is."""
-    (x0, y0, x1, y1), inner, s = sphere_pixels(camera, sphere, rim_exclude_px=1.5)
-    usable = inner & (s["cos_view"] >= 0.45)
+    box, s = sphere_surface(camera, sphere)
+    x0, y0, x1, y1 = box
+    usable = usable_pixels(camera, sphere, box, s, 1.5) & (s["cos_view"] >= 0.45)
     if usable.sum() < 30:
         return {"contrast": 0.0, "residual": 1.0, "mean": 0.0, "clipped": False, "clip_contrast": 0.0}
     crop = np.asarray(image, np.float64)[y0:y1, x0:x1, :3]
-    searched = sphere_pixels(camera, sphere, rim_exclude_px=RIM_EXCLUDE_PX)[1]
+    searched = usable_pixels(camera, sphere, box, s, RIM_EXCLUDE_PX)
     clipped = clip_level is not None and bool((crop[searched].min(-1) >= CLIP_FRACTION * clip_level).any())
     lum = crop.mean(-1)[usable]
     n = s["normal"][usable]

@@ -31,7 +31,7 @@ __all__ = [
     "CLIPS_AT", "UNCLIPPED_STRIKE", "LIT_FRACTION", "DIFFUSE_RIM_FRACTION", "ORTHO_DEPTH",
     "OUTLINE_LOSS_SCALE_PX", "Camera", "Sphere", "sphere_from_cone", "sphere_from_circle", "fit_sphere",
     "mask_outline_points", "sphere_from_mask", "outline_circle", "outline_polygon", "bounding_box", "surface",
-    "reflected_direction", "predict_highlight", "Highlight", "sphere_pixels", "locate_highlight",
+    "reflected_direction", "predict_highlight", "Highlight", "sphere_pixels", "sphere_surface", "usable_pixels", "locate_highlight",
     "highlight_likelihood",
     "diffuse_light",
     "error_budget",
@@ -264,18 +264,23 @@ def surface(camera: Camera, sphere: Sphere, x, y) -> dict:
     """Where each pixel's ray meets the sphere: ``hit`` (bool), ``normal`` and reflected
     direction ``reflect`` (unit, camera frame), ``cos_view`` (normal . direction to the
     camera) and ``point`` (camera frame), all of shape ``x.shape (+ (3,))``."""
-    o, d = camera.rays(x, y)
-    oc = sphere.c - o
-    b = np.sum(d * oc, -1)
-    disc = b * b - (np.sum(oc * oc, -1) - sphere.radius ** 2)
-    hit = disc >= 0
+    o, d, b, disc = _ray_sphere(camera, sphere, x, y)
     t = b - np.sqrt(np.maximum(disc, 0.0))
     p = o + t[..., None] * d
     n = (p - sphere.c) / sphere.radius
     n /= np.linalg.norm(n, axis=-1, keepdims=True)
     dn = np.sum(d * n, -1)
     refl = d - 2.0 * dn[..., None] * n
-    return {"hit": hit, "normal": n, "reflect": refl, "cos_view": -dn, "point": p}
+    return {"hit": disc >= 0, "normal": n, "reflect": refl, "cos_view": -dn, "point": p}
+
+
+def _ray_sphere(camera: Camera, sphere: Sphere, x, y):
+    """Each pixel's ray ``(o, d)``, its distance ``b`` to the point nearest the sphere's
+    centre and the discriminant ``disc`` (the ray meets the sphere where ``disc >= 0``)."""
+    o, d = camera.rays(x, y)
+    oc = sphere.c - o
+    b = np.sum(d * oc, -1)
+    return o, d, b, b * b - (np.sum(oc * oc, -1) - sphere.radius ** 2)
 
 
 def reflected_direction(camera: Camera, sphere: Sphere, x: float, y: float) -> np.ndarray:
@@ -324,17 +329,32 @@ def sphere_pixels(camera: Camera, sphere: Sphere, mask: np.ndarray | None = None
                   rim_exclude_px: float = RIM_EXCLUDE_PX):
     """Pixels of the sphere's interior usable for measurement, in its bounding box:
     returns ``(box, usable (h, w) bool, surface dict over the box)``."""
+    box, s = sphere_surface(camera, sphere)
+    return box, usable_pixels(camera, sphere, box, s, rim_exclude_px, mask), s
+
+
+def sphere_surface(camera: Camera, sphere: Sphere) -> tuple[tuple[int, int, int, int], dict]:
+    """The sphere's bounding box and :func:`surface` over it (pixel centres)."""
     x0, y0, x1, y1 = box = bounding_box(camera, sphere)
     ys, xs = np.mgrid[y0:y1, x0:x1] + 0.5
-    s = surface(camera, sphere, xs, ys)
-    # shrink by rim_exclude_px: every pixel whose neighbourhood leaves the sphere is out
+    return box, surface(camera, sphere, xs, ys)
+
+
+def usable_pixels(camera: Camera, sphere: Sphere, box, s: dict, rim_exclude_px: float = RIM_EXCLUDE_PX,
+                  mask: np.ndarray | None = None) -> np.ndarray:
+    """Of the ``box``'s pixels (``s``: :func:`sphere_surface`), those usable for
+    measurement: on the sphere, at least ``rim_exclude_px`` from its outline (every
+    pixel whose neighbourhood leaves the sphere is out), seen at most
+    :data:`MAX_RIM_ANGLE_DEG` from the view ray, and in ``mask`` if one is given."""
+    x0, y0, x1, y1 = box
+    ys, xs = np.mgrid[y0:y1, x0:x1] + 0.5
     shrunk = s["hit"].copy()
     for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1), (0.7, 0.7), (-0.7, 0.7), (0.7, -0.7), (-0.7, -0.7)):
-        shrunk &= surface(camera, sphere, xs + dx * rim_exclude_px, ys + dy * rim_exclude_px)["hit"]
+        shrunk &= _ray_sphere(camera, sphere, xs + dx * rim_exclude_px, ys + dy * rim_exclude_px)[3] >= 0
     usable = shrunk & (s["cos_view"] >= math.cos(math.radians(MAX_RIM_ANGLE_DEG)))
     if mask is not None:
         usable &= np.asarray(mask, bool)[y0:y1, x0:x1]
-    return box, usable, s
+    return usable
 
 
 def _solid_angle_weights(camera: Camera, sphere: Sphere, xs, ys) -> np.ndarray:

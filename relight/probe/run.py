@@ -15,6 +15,7 @@ from relight.probe.geometry import Camera, ProbeError, Sphere
 
 __all__ = [
     "CIRCLE_TOLERANCE_PX",
+    "WHITE",
     "ProbeConfig",
     "ProbeResult",
     "locate_sphere",
@@ -23,6 +24,8 @@ __all__ = [
 ]
 
 CIRCLE_TOLERANCE_PX = 0.5     # a given circle's default uncertainty (centre and radius, pixels)
+WHITE = np.full(3, 1.0 / math.sqrt(3.0))   # the colour when no diffuse sphere measures it (unit RGB)
+WHITE.flags.writeable = False
 
 
 @dataclass(frozen=True)
@@ -163,7 +166,7 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
     """
     entry: dict = {}
     result = ProbeResult(entry=entry, camera=None)
-    direction, rgb, methods = None, np.ones(3) / math.sqrt(3.0), []
+    direction, rgb, methods = None, WHITE, []
     chrome_circle = None
     candidates: list = []      # spheres found automatically, shared when both are in one image
     chrome_found, clip = None, None
@@ -241,7 +244,6 @@ def _measure_diffuse(cfg: ProbeConfig, entry: dict, result: "ProbeResult", chrom
     found, or found with no lit side left: the light behind it, or its lit side hidden)
     is skipped and said so (``diffuse_skipped``): the chrome sphere still gives the
     direction, and the colour stays white. Without one, either is a one-line error."""
-    white = np.ones(3) / math.sqrt(3.0)
     same = cfg.diffuse == cfg.chrome
     image, d_clip = (result.chrome_image, clip) if same else detect.read_probe_image(cfg.diffuse, cfg.linear)[:2]
     camera = cfg.camera(image.shape[1], image.shape[0])
@@ -257,7 +259,7 @@ def _measure_diffuse(cfg: ProbeConfig, entry: dict, result: "ProbeResult", chrom
         if not (cfg.chrome and searched):
             raise
         entry["diffuse_skipped"] = str(exc)
-        return None, white
+        return None, WHITE
     entry["diffuse_circle"] = [round(v, 3) for v in detect.outline_circle(camera, sphere)]
     entry["diffuse_found_by"] = found
     if refinement:
@@ -269,7 +271,7 @@ def _measure_diffuse(cfg: ProbeConfig, entry: dict, result: "ProbeResult", chrom
         if not cfg.chrome:
             raise
         entry["diffuse_skipped"] = str(exc)
-        return None, white
+        return None, WHITE
     entry["diffuse_to_light_camera"] = [round(float(v), 6) for v in d_dir]
     entry["diffuse_fit"] = {k: round(v, 4) if isinstance(v, float) else v for k, v in info.items()}
     return d_dir, rgb
