@@ -746,8 +746,9 @@ def test_mirror_outlines_fitted_to_their_rims_edges_come_out_the_right_size_in_f
     # twelve rooms of the harder probe set (seeds no tuning or judging set uses) rendered
     # here by Mitsuba at 256 px and written as 8-bit: the chrome sphere's rim mirrors what
     # lies just behind it, so its edges lie inside the outline, and the outermost-rim fit
-    # started at the true circle comes out too small (Cycles renders: 0.17 px at the
-    # median); moved out by the rim shift it is within 0.1 px at the median
+    # started at the true circle comes out too small (settled: 0.11 px at the median here,
+    # 0.15 px on Cycles renders; asserted beyond 0.05 px, a margin for renders on another
+    # CPU); moved out by the rim shift it is within 0.1 px at the median (here +0.04)
     from relight import backend
     from relight.colour import srgb_decode
     from relight.imageio import to_srgb8
@@ -766,7 +767,7 @@ def test_mirror_outlines_fitted_to_their_rims_edges_come_out_the_right_size_in_f
         fitted.append(detect.outline_circle(cam, fit)[2] - t["chrome_circle"][2])
         moved = detect.outline_from_rim(cam, fit, detect.chrome_rim_shift_px(image))
         shifted.append(detect.outline_circle(cam, moved)[2] - t["chrome_circle"][2])
-    assert np.median(fitted) < -0.08                      # the problem
+    assert np.median(fitted) < -0.05                      # the problem
     assert abs(np.median(shifted)) < 0.1
 
 
