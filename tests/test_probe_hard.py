@@ -34,9 +34,9 @@ def _sphere_at(camera, x, y, angular_radius_deg, distance=5.0):
 
 
 def _render(camera, sphere, to_light, shift=(0.0, 0.0), light_radius_deg=3.0, radiance=30.0, ss=4,
-            extra=None, background=0.3, clip=True):
+            extra=None, background=0.3, clip=True, blur_px=0.6):
     """A mirror sphere reflecting a disc light on a dim sky, supersampled, blurred by a
-    lens (0.6 px), clipped at 1 (unless not ``clip``: linear HDR), with all content moved by ``shift`` pixels. ``extra(s)``
+    lens (``blur_px``, a Gaussian's sigma), clipped at 1 (unless not ``clip``: linear HDR), with all content moved by ``shift`` pixels. ``extra(s)``
     adds radiance to reflected directions (other bright things)."""
     img = np.zeros((camera.height, camera.width))
     to_light = np.asarray(to_light, float) / np.linalg.norm(to_light)
@@ -49,7 +49,7 @@ def _render(camera, sphere, to_light, shift=(0.0, 0.0), light_radius_deg=3.0, ra
             if extra is not None:
                 value = value + extra(s)
             img += np.where(s["hit"], value, background)
-    img = ndimage.gaussian_filter(img / ss ** 2, 0.6)
+    img = ndimage.gaussian_filter(img / ss ** 2, blur_px)
     return np.repeat((np.clip(img, 0.0, 1.0) if clip else img)[..., None], 3, -1)
 
 
@@ -207,6 +207,25 @@ def test_a_clipped_patch_of_a_lit_wall_loses_to_the_light_standing_alone():
                               extra=_lit_wall(wall, halo=0.0)))
     tie = pg.locate_highlight(alone, cam, sphere, clip_level=1.0)
     assert tie.quality["ambiguity"] > found.quality["ambiguity"]
+
+
+@pytest.mark.parametrize("rho", [0.9, 0.95])
+@pytest.mark.parametrize("toward_deg", [-90.0, 30.0])
+def test_a_bright_blurred_light_by_the_rim_is_centred_on_its_whole_clipped_disc(rho, toward_deg):
+    # a light 100 times the clip level under a 1 px lens blur clips over a disc of about
+    # 3 px radius, which crosses the outline near the rim: the part past it is the light's
+    # too (the blur spreads it there as much as inward); cut there, the centre moved inward
+    # by 0.6-1.2 px (5-12 deg)
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 60.0, 8.0)
+    cx, cy, r = detect.outline_circle(cam, sphere)
+    a = math.radians(toward_deg)
+    to_light = pg.reflected_direction(cam, sphere, cx + rho * r * math.cos(a), cy + rho * r * math.sin(a))
+    image = _quantise(_render(cam, sphere, to_light, light_radius_deg=1.0, radiance=3000.0, blur_px=1.0))
+    found = pg.locate_highlight(image, cam, sphere, clip_level=1.0)
+    truth_px, _ = pg.predict_highlight(cam, sphere, to_light)
+    assert found.quality["clipped"] and found.quality["highlight_pixels"] > 12
+    assert math.dist(found.pixel, truth_px) < 0.5
 
 
 def test_a_bright_surface_touching_a_small_highlight_does_not_pull_it():

@@ -57,7 +57,7 @@ DIFFUSE_RIM_FRACTION = 0.9     # diffuse fit: normals within 0.9 of the radius (
 ORTHO_DEPTH = 1.0e4            # z of an orthographic sphere's centre (any value works)
 OUTLINE_LOSS_SCALE_PX = 0.5    # robust outline fit: residuals beyond ~0.5 px count less
 RIM_BLOB_ANGLE_DEG = 65.0      # a blob whose normals lie beyond this from the view ray is grazing
-SMALL_HIGHLIGHT_PX = 12        # a highlight of at most this many pixels: measured in a soft window
+SMALL_HIGHLIGHT_PX = 12        # an unclipped highlight of at most this many pixels: measured in a soft window
 WINDOW_MARGIN_PX = 1.5         # a compact highlight's centroid window: its core's radius plus 1.5 px (lens blur)
 AMBIGUITY_MARGIN = 0.5         # two highlight candidates within this score of each other: ambiguous
 ISOLATION_RING_PX = (2, 3)     # a candidate's surroundings: pixels 2-3 px from it (past its blur) ...
@@ -441,12 +441,16 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     lens blurs the blob symmetrically in the image, and near the rim, where one pixel spans
     many degrees, a mean over directions would not be. A broad one (wider than that
     limit: a lobe from an extended source) is the mean of the
-    reflected view rays weighted by intensity and by each pixel's solid angle.
+    reflected view rays weighted by intensity and by each pixel's solid angle. A compact
+    core that clips, however large (a lens's blur spreads a light far above the clip level
+    into a clipped disc), is centred in a soft window over its own pixels, continued past
+    the outline, where the blur spreads it as far as inward (:func:`_soft_window_centroid`).
 
     Args:
         image: linear RGB ``(H, W, 3)`` or luminance ``(H, W)``.
-        clip_level: the value at which the sensor clips (1 for PNG/JPEG), if any; only
-            used to report ``clipped`` in the quality figures.
+        clip_level: the value at which the sensor clips (1 for PNG/JPEG), if any: a
+            candidate that does not reach it in an image that does is scored down, a
+            clipped core is measured as above, and ``clipped`` is reported.
         expect_to_light: a rough direction toward the light (a diffuse sphere's
             shading), used to choose among candidate blobs.
         circle_px: the outline's position uncertainty in pixels (a given circle's
@@ -515,20 +519,28 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     clips = clip_level is not None and peak >= CLIPS_AT * clip_level
     light_pixels = best_core if clips else region
     compact = _spread_deg(refl[light_pixels]) <= spread_limit
-    if compact and (region.sum() <= SMALL_HIGHLIGHT_PX
-                    or ((merged or clips) and best_core.sum() <= SMALL_HIGHLIGHT_PX)):
+    if compact and (clips or region.sum() <= SMALL_HIGHLIGHT_PX
+                    or (merged and best_core.sum() <= SMALL_HIGHLIGHT_PX)):
         # the core's own centre, then a soft window around it above the level of its
         # surroundings (the 90th percentile of a ring just outside the window: a lit
         # floor's reflection beside a small clipped highlight, or touching it, must not
-        # pull it)
+        # pull it). Every compact clipped core is measured so, however large: a blurred
+        # lens or pixel filter spreads a light far above the clip level into a clipped
+        # disc of many pixels, and their plain centroid follows whatever bright pixels
+        # lie beside it and whatever of it the outline cuts off
         # the rim band (pixels on the sphere within RIM_EXCLUDE_PX of its outline) is left out
         # of the search, as its pixels mix the sphere with what lies beyond; but where the
         # chosen core runs into it at the core's own brightness, those pixels are the light
         # (a light behind the sphere puts its highlight there), and leaving them out moves
         # the highlight inward by up to a pixel: several degrees near the rim
+        # A clipped core also continues past the outline itself: the blur spreads the light
+        # beyond the sphere's edge as much as inward, and the disc cut there has its centre
+        # inward (a pixel, 7 deg at the median, for lights near the rim under a 1 px blur)
         rim_band = s["hit"] & ~usable & (s["cos_view"] > 0)
         if mask is not None:
             rim_band &= np.asarray(mask, bool)[y0:y1, x0:x1]
+        elif clips:
+            rim_band |= ~s["hit"]
         best_core = _core_into_rim(crop, best_core, rim_band)
         cy_, cx_ = np.nonzero(best_core)
         start = (float(cx_.mean()) + 0.5, float(cy_.mean()) + 0.5)
