@@ -209,6 +209,53 @@ def test_a_clipped_patch_of_a_lit_wall_loses_to_the_light_standing_alone():
     assert tie.quality["ambiguity"] > found.quality["ambiguity"]
 
 
+def _lit_object(centre, core_deg=2.5, core=3.0, halo_deg=6.0, halo=0.95):
+    """A small lit object seen in the mirror (a lit ball): a patch that clips in 8-bit
+    (``core_deg`` around ``centre``), shading down over the pixels around it (``halo``
+    out to ``halo_deg``), dark beyond."""
+    c = np.asarray(centre, float) / np.linalg.norm(centre)
+
+    def extra(s):
+        ang = np.degrees(np.arccos(np.clip(s["reflect"] @ c, -1, 1)))
+        return np.where(ang < core_deg, core, np.where(ang < halo_deg, halo, 0.0))
+    return extra
+
+
+def test_a_lit_objects_clipped_patch_shading_down_loses_to_the_light_that_falls_off_at_once():
+    # a sharp image (a pixel filter, no lens): both blobs clip, both are compact, round and
+    # stand alone 2-3 px out; the object's patch shades down over the pixels touching it,
+    # the light, far above the clip level, drops to the sky at once
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 60.0, 8.0)
+    light = np.array([0.35, 0.45, 0.82]) / np.linalg.norm([0.35, 0.45, 0.82])
+    ball = np.array([-0.4, 0.35, 0.85]) / np.linalg.norm([-0.4, 0.35, 0.85])
+    image = _quantise(_render(cam, sphere, light, light_radius_deg=2.0, extra=_lit_object(ball), blur_px=0.3))
+    found = pg.locate_highlight(image, cam, sphere, clip_level=1.0)
+    assert found.quality["candidates"] >= 2
+    assert _angle(found.to_light, light) < DIR_TOL_DEG
+    # the shading around the patch is what decides: the patch alone (nothing around it) is a tie
+    bare = _quantise(_render(cam, sphere, light, light_radius_deg=2.0, extra=_lit_object(ball, halo=0.0),
+                             blur_px=0.3))
+    tie = pg.locate_highlight(bare, cam, sphere, clip_level=1.0)
+    assert tie.quality["ambiguity"] > 0.9 and found.quality["ambiguity"] < tie.quality["ambiguity"] - 0.2
+
+
+def test_a_light_beside_a_lit_objects_clipped_patch_is_not_scored_for_the_patch():
+    # a lit object's clipped patch 12 deg from the light (2-3 px in the image): the patch is in
+    # the light's surroundings, but it is a candidate of its own, judged on its own
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 60.0, 8.0)
+    light = np.array([0.35, 0.45, 0.82]) / np.linalg.norm([0.35, 0.45, 0.82])
+    side = np.cross(light, [0.0, 0.0, 1.0])
+    side /= np.linalg.norm(side)
+    patch = light * math.cos(math.radians(12.0)) + side * math.sin(math.radians(12.0))
+    image = _quantise(_render(cam, sphere, light, light_radius_deg=2.0,
+                              extra=_lit_object(patch, core_deg=2.0, halo_deg=5.0), blur_px=0.3))
+    found = pg.locate_highlight(image, cam, sphere, clip_level=1.0)
+    assert found.quality["candidates"] >= 2
+    assert _angle(found.to_light, light) < DIR_TOL_DEG
+
+
 @pytest.mark.parametrize("rho", [0.9, 0.95])
 @pytest.mark.parametrize("toward_deg", [-90.0, 30.0])
 def test_a_bright_blurred_light_by_the_rim_is_centred_on_its_whole_clipped_disc(rho, toward_deg):
