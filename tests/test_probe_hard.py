@@ -275,6 +275,29 @@ def test_a_bright_blurred_light_by_the_rim_is_centred_on_its_whole_clipped_disc(
     assert math.dist(found.pixel, truth_px) < 0.5
 
 
+@pytest.mark.parametrize("rho", [0.9, 0.95])
+@pytest.mark.parametrize("toward_deg", [-90.0, 30.0])
+def test_a_clipped_wall_behind_the_rim_does_not_pull_a_highlight_by_the_rim(rho, toward_deg):
+    # as above, but what lies right behind the sphere on that side clips too (a lit wall):
+    # the light's clipped disc runs into it past the outline, and those pixels are not the
+    # light; taken as its own, they pulled it 1.3-9.7 px outward. The disc's inner part
+    # alone leaves the inward bias above (at most a pixel), never an outward pull
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 60.0, 8.0)
+    cx, cy, r = detect.outline_circle(cam, sphere)
+    a = math.radians(toward_deg)
+    out = np.array([math.cos(a), math.sin(a)])
+    to_light = pg.reflected_direction(cam, sphere, cx + rho * r * out[0], cy + rho * r * out[1])
+    truth_px, _ = pg.predict_highlight(cam, sphere, to_light)
+    ys, xs = np.mgrid[0:H, 0:W] + 0.5
+    wall = ~pg.surface(cam, sphere, xs, ys)["hit"] & ((xs - cx) * out[0] + (ys - cy) * out[1] > 0.5 * r)
+    image = _render(cam, sphere, to_light, light_radius_deg=1.0, radiance=3000.0, blur_px=1.0)
+    image[wall] = 1.0
+    found = pg.locate_highlight(_quantise(image), cam, sphere, clip_level=1.0)
+    outward = float((np.asarray(found.pixel) - truth_px) @ out)
+    assert outward < 0.25 and math.dist(found.pixel, truth_px) < 1.0
+
+
 def test_a_bright_surface_touching_a_small_highlight_does_not_pull_it():
     # a lit floor's reflection runs just below the light's clipped highlight, one darker
     # row between them (one of its pixels clips too): the highlight's position comes from

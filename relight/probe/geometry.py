@@ -536,15 +536,20 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
         # chosen core runs into it at the core's own brightness, those pixels are the light
         # (a light behind the sphere puts its highlight there), and leaving them out moves
         # the highlight inward by up to a pixel: several degrees near the rim
-        # A clipped core also continues past the outline itself: the blur spreads the light
-        # beyond the sphere's edge as much as inward, and the disc cut there has its centre
-        # inward (a pixel, 7 deg at the median, for lights near the rim under a 1 px blur)
         rim_band = s["hit"] & ~usable & (s["cos_view"] > 0)
         if mask is not None:
             rim_band &= np.asarray(mask, bool)[y0:y1, x0:x1]
-        elif clips:
-            rim_band |= ~s["hit"]
         best_core = _core_into_rim(crop, best_core, rim_band)
+        # A clipped core also continues past the outline itself: the blur spreads the light
+        # beyond the sphere's edge as much as inward, and the disc cut there has its centre
+        # inward (a pixel, 7 deg at the median, for lights near the rim under a 1 px blur).
+        # The clipped pixels it runs into there are its own while the two together stay a
+        # disc: a clipped wall or window behind the sphere, which the core can run into
+        # too, does not
+        if clips and mask is None:
+            whole = _core_into_rim(crop, best_core, ~s["hit"])
+            if whole.sum() > best_core.sum() and _disc_like(whole):
+                best_core = whole
         cy_, cx_ = np.nonzero(best_core)
         start = (float(cx_.mean()) + 0.5, float(cy_.mean()) + 0.5)
         radius = math.sqrt(best_core.sum() / math.pi) + WINDOW_MARGIN_PX
@@ -590,6 +595,18 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     quality["error_budget_deg"] = {k: round(v, 3) for k, v in budget.items()}
     quality["uncertainty_deg"] = budget["total_deg"]
     return Highlight(to_light, (px, py), quality)
+
+
+def _disc_like(blob: np.ndarray, max_elongation: float = 1.5, max_excess: float = 0.3) -> bool:
+    """Whether ``blob`` is a filled disc: its principal axes within ``max_elongation`` of
+    each other (a pixel's own extent included) and its area at most ``1 + max_excess``
+    times the disc those axes describe (a disc of radius R spreads R^2 / 4 along each)."""
+    ys, xs = np.nonzero(blob)
+    if ys.size < 3:
+        return True
+    ev = np.linalg.eigvalsh(np.cov(np.stack([xs, ys]).astype(np.float64)) + np.eye(2) / 12.0)
+    return (math.sqrt(ev[1] / max(ev[0], 1e-9)) <= max_elongation
+            and ys.size <= (1.0 + max_excess) * 4.0 * math.pi * math.sqrt(ev[0] * ev[1]))
 
 
 def _core_into_rim(crop: np.ndarray, core: np.ndarray, rim_band: np.ndarray) -> np.ndarray:
