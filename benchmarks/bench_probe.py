@@ -35,6 +35,7 @@ Errors are in degrees; a failure counts as 180.
     python benchmarks/bench_probe.py --set ~/relight-data/issue-29/set --floor   # what 8-bit leaves
     python benchmarks/bench_probe.py --set ~/relight-data/issue-29/set --refilter DIR   # then --set DIR:
     #   the Cycles renders as Blender's default pixel filter (Blackman-Harris, 1.5 px) would give them
+    #   (--refilter-blur 1.0: under a 1 px Gaussian blur instead, a lens's)
 """
 from __future__ import annotations
 
@@ -85,14 +86,15 @@ def blackman_harris_weights(width_px: float = BH_WIDTH_PX) -> np.ndarray:
     return w / w.sum()
 
 
-def refilter_set(folder: str, out: str) -> None:
+def refilter_set(folder: str, out: str, blur_px: float | None = None) -> None:
     """A copy of the set's Cycles part as Blender's default pixel filter would render it:
     each linear Cycles EXR (rendered with a 1 px box, as Mitsuba's) convolved with the
     cell-integrated Blackman-Harris weights in x and y, then the 8-bit PNG re-encoded at
     the scene's exposure. An approximation (the box-filtered pixels are filtered again),
     which tells whether the light's sub-pixel position survives 8-bit clipping when a
-    wider filter spreads it into unclipped neighbours."""
-    from scipy.ndimage import convolve1d
+    wider filter spreads it into unclipped neighbours. With ``blur_px``, a Gaussian blur
+    of that standard deviation instead (a camera lens's, roughly)."""
+    from scipy.ndimage import convolve1d, gaussian_filter
 
     from relight.fileio import atomic_write
     from relight.imageio import read_exr, write_exr, write_png
@@ -100,16 +102,20 @@ def refilter_set(folder: str, out: str) -> None:
         raise SystemExit("--refilter: the output folder must differ from --set")
     os.makedirs(out, exist_ok=True)
     w = blackman_harris_weights()
-    for path in sorted(glob.glob(os.path.join(folder, "probe[0-9][0-9][0-9].json"))):
+    for path in sorted(glob.glob(os.path.join(folder, "probe[0-9]*.json"))):
         base = os.path.join(out, os.path.basename(path)[:-5])
         with open(path) as f:
             d = json.load(f)
         image = read_exr(path[:-5] + ".cycles.exr")
-        image = convolve1d(convolve1d(image, w, axis=0, mode="nearest"), w, axis=1, mode="nearest")
+        if blur_px is None:
+            image = convolve1d(convolve1d(image, w, axis=0, mode="nearest"), w, axis=1, mode="nearest")
+        else:
+            image = gaussian_filter(image, (blur_px, blur_px, 0), mode="nearest")
         write_exr(base + ".cycles.exr", image.astype(np.float32))
         write_png(base + ".cycles.png", image, exposure=d["png_exposure"])
         atomic_write(base + ".json", lambda tmp, d=d: open(tmp, "w").write(json.dumps(d, indent=1)))
-    print(f"wrote the Blackman-Harris copy of {folder} to {out}")
+    how = "Blackman-Harris" if blur_px is None else f"{blur_px:g} px Gaussian"
+    print(f"wrote the {how} copy of {folder} to {out}")
 
 
 def make_set(folder: str, count: int, spp: int, first: int = 0, cycles: bool = True) -> None:
@@ -394,9 +400,11 @@ def main() -> None:
     ap.add_argument("--refilter", default=None, metavar="DIR",
                     help="only write a copy of the set's Cycles renders under Blender's default pixel filter "
                          "(Blackman-Harris 1.5 px) to DIR; then run with --set DIR --renderers cycles")
+    ap.add_argument("--refilter-blur", type=float, default=None, metavar="PX",
+                    help="with --refilter: a Gaussian blur of this standard deviation (pixels) instead")
     args = ap.parse_args()
     if args.refilter:
-        refilter_set(args.set, args.refilter)
+        refilter_set(args.set, args.refilter, args.refilter_blur)
         return
     if args.make:
         make_set(args.set, args.make, args.spp, args.first, cycles=not args.no_cycles)

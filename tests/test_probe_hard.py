@@ -980,6 +980,36 @@ def test_blackman_harris_pixel_weights_match_the_window():
     assert w.sum() == pytest.approx(1.0) and w[2] > 0.5 and w[0] == 0.0 and w[1] > 0.1
 
 
+@pytest.mark.parametrize("blur_px", [None, 1.0])
+def test_refiltered_copy_spreads_a_point_as_its_filter_does(tmp_path, blur_px):
+    """``bench_probe.py --refilter`` (``--refilter-blur``): a point of light in a scene's
+    Cycles EXR comes out with its energy kept, in place, spread with the filter's variance
+    in x and y (the 1-D weights' own, or the Gaussian's), and the colour channels apart."""
+    from relight.imageio import read_exr, write_exr
+    bench = load_script("benchmarks/bench_probe.py")
+    src, out = tmp_path / "set", tmp_path / "copy"
+    src.mkdir()
+    image = np.zeros((21, 25, 3), np.float32)
+    image[10, 12] = (4.0, 2.0, 1.0)
+    write_exr(str(src / "probe1234.cycles.exr"), image)
+    (src / "probe1234.json").write_text(json.dumps({"png_exposure": 1.0}))
+    bench.refilter_set(str(src), str(out), blur_px)
+    got = read_exr(str(out / "probe1234.cycles.exr")).astype(np.float64)
+    assert (out / "probe1234.cycles.png").exists() and json.loads((out / "probe1234.json").read_text()) == {"png_exposure": 1.0}
+    np.testing.assert_allclose(got.sum((0, 1)), (4.0, 2.0, 1.0), rtol=1e-5)
+    np.testing.assert_allclose(got[..., 1] * 2.0, got[..., 0], atol=1e-6)
+    lum = got[..., 0] / got[..., 0].sum()
+    ys, xs = np.mgrid[0:21, 0:25]
+    assert (lum * xs).sum() == pytest.approx(12.0, abs=1e-6) and (lum * ys).sum() == pytest.approx(10.0, abs=1e-6)
+    if blur_px is None:
+        w = bench.blackman_harris_weights()
+        variance = float((w * np.arange(-2, 3) ** 2).sum())
+    else:
+        variance = blur_px ** 2
+    assert (lum * (xs - 12.0) ** 2).sum() == pytest.approx(variance, rel=0.02)
+    assert (lum * (ys - 10.0) ** 2).sum() == pytest.approx(variance, rel=0.02)
+
+
 def test_a_linear_hdr_image_is_searched_as_a_camera_would_expose_it(monkeypatch):
     # a linear EXR's highlight is hundreds of times its surroundings: detection looks at it
     # as a camera's auto exposure would record it (the brightest 2% clip), so that it is
