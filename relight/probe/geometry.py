@@ -545,7 +545,7 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
         # inward (a pixel, 7 deg at the median, for lights near the rim under a 1 px blur).
         # The clipped pixels it runs into there are its own while the two together stay a
         # disc: a clipped wall or window behind the sphere, which the core can run into
-        # too, does not
+        # too, does not. (With a mask given, what lies outside it is not looked at.)
         if clips and mask is None:
             whole = _core_into_rim(crop, best_core, ~s["hit"])
             if whole.sum() > best_core.sum() and _disc_like(whole):
@@ -597,6 +597,12 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     return Highlight(to_light, (px, py), quality)
 
 
+def _principal_variances(xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    """The variances of pixels ``(xs, ys)`` along their principal axes (ascending), each
+    pixel's own extent (a unit square: 1/12) included."""
+    return np.linalg.eigvalsh(np.cov(np.stack([xs, ys]).astype(np.float64)) + np.eye(2) / 12.0)
+
+
 def _disc_like(blob: np.ndarray, max_elongation: float = 1.5, max_excess: float = 0.3) -> bool:
     """Whether ``blob`` is a filled disc: its principal axes within ``max_elongation`` of
     each other (a pixel's own extent included) and its area at most ``1 + max_excess``
@@ -604,7 +610,7 @@ def _disc_like(blob: np.ndarray, max_elongation: float = 1.5, max_excess: float 
     ys, xs = np.nonzero(blob)
     if ys.size < 3:
         return True
-    ev = np.linalg.eigvalsh(np.cov(np.stack([xs, ys]).astype(np.float64)) + np.eye(2) / 12.0)
+    ev = _principal_variances(xs, ys)
     return (math.sqrt(ev[1] / max(ev[0], 1e-9)) <= max_elongation
             and ys.size <= (1.0 + max_excess) * 4.0 * math.pi * math.sqrt(ev[0] * ev[1]))
 
@@ -740,8 +746,7 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
         spread = _spread_deg(refl[ys, xs]) if ys.size > 1 else 0.0
         score -= max(0.0, spread - spread_limit) / max(spread_limit, 1e-6)
         if ys.size >= 3:
-            cov = np.cov(np.stack([xs, ys]).astype(np.float64)) + np.eye(2) / 12.0
-            ev = np.linalg.eigvalsh(cov)
+            ev = _principal_variances(xs, ys)
             score -= 0.5 * max(0.0, math.sqrt(ev[1] / max(ev[0], 1e-9)) - 1.5)
         grazing = float(np.mean(cos_view[ys, xs] < math.cos(math.radians(RIM_BLOB_ANGLE_DEG))))
         score -= 2.0 * grazing
@@ -750,10 +755,11 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
         # a candidate that drops below half its peak at once is judged on its own
         # surroundings: another candidate across that gap is not its continuation
         apart = touching.size == 0 or float(touching.max()) < HIGHLIGHT_FRACTION * float(w.max())
-        surround = _surround_share(crop, blob, usable, (cores > 0) & ~blob if apart else None)
+        around = _surround_share(crop, blob, usable)
+        surround = _surround_share(crop, blob, usable, (cores > 0) & ~blob) if apart else around
         score -= ISOLATION_WEIGHT * max(0.0, surround - ISOLATION_LEVEL)
         if clip_at is not None and float(w.max()) >= clip_at and touching.size >= 3:
-            shading_down = float(np.percentile(touching, 90)) / float(w.max()) - _surround_share(crop, blob, usable)
+            shading_down = float(np.percentile(touching, 90)) / float(w.max()) - around
             score -= SHADING_DOWN_WEIGHT * max(0.0, shading_down - SHADING_DOWN_LEVEL)
         if expect_to_light is not None:
             e = np.asarray(expect_to_light, np.float64)
