@@ -209,16 +209,11 @@ def test_a_clipped_patch_of_a_lit_wall_loses_to_the_light_standing_alone():
     assert tie.quality["ambiguity"] > found.quality["ambiguity"]
 
 
-def _lit_object(centre, core_deg=2.5, core=3.0, halo_deg=6.0, halo=0.95):
+def _lit_object(centre, core_deg=2.5, halo_deg=6.0, halo=0.95):
     """A small lit object seen in the mirror (a lit ball): a patch that clips in 8-bit
-    (``core_deg`` around ``centre``), shading down over the pixels around it (``halo``
-    out to ``halo_deg``), dark beyond."""
-    c = np.asarray(centre, float) / np.linalg.norm(centre)
-
-    def extra(s):
-        ang = np.degrees(np.arccos(np.clip(s["reflect"] @ c, -1, 1)))
-        return np.where(ang < core_deg, core, np.where(ang < halo_deg, halo, 0.0))
-    return extra
+    (``core_deg`` around ``centre``, 3 times the clip level), shading down over the pixels
+    around it (``halo`` out to ``halo_deg``), dark beyond."""
+    return _lit_wall(centre, core_deg=core_deg, core=3.0, halo_deg=halo_deg, halo=halo)
 
 
 def test_a_lit_objects_clipped_patch_shading_down_loses_to_the_light_that_falls_off_at_once():
