@@ -251,21 +251,31 @@ def test_a_light_beside_a_lit_objects_clipped_patch_is_not_scored_for_the_patch(
     assert _angle(found.to_light, light) < DIR_TOL_DEG
 
 
-@pytest.mark.parametrize("rho", [0.9, 0.95])
-@pytest.mark.parametrize("toward_deg", [-90.0, 30.0])
-def test_a_bright_blurred_light_by_the_rim_is_centred_on_its_whole_clipped_disc(rho, toward_deg):
-    # a light 100 times the clip level under a 1 px lens blur clips over a disc of about
-    # 3 px radius, which crosses the outline near the rim: the part past it is the light's
-    # too (the blur spreads it there as much as inward); cut there, the centre moved inward
-    # by 0.6-1.2 px (5-12 deg)
+def _bright_light_by_the_rim(rho, toward_deg, wall=False):
+    """A light 100 times the clip level, ``rho`` of the radius from the centre toward
+    ``toward_deg`` in the image, under a 1 px lens blur, in 8-bit; with ``wall``, what lies
+    right behind the sphere on that side clips too. Returns the camera, sphere, image, the
+    truth's pixel and the outward unit vector."""
     cam = pg.Camera.from_fov(W, H, FOV_DEG)
     sphere = _sphere_at(cam, 80.0, 60.0, 8.0)
     cx, cy, r = detect.outline_circle(cam, sphere)
-    a = math.radians(toward_deg)
-    to_light = pg.reflected_direction(cam, sphere, cx + rho * r * math.cos(a), cy + rho * r * math.sin(a))
-    image = _quantise(_render(cam, sphere, to_light, light_radius_deg=1.0, radiance=3000.0, blur_px=1.0))
+    out = np.array([math.cos(math.radians(toward_deg)), math.sin(math.radians(toward_deg))])
+    to_light = pg.reflected_direction(cam, sphere, cx + rho * r * out[0], cy + rho * r * out[1])
+    image = _render(cam, sphere, to_light, light_radius_deg=1.0, radiance=3000.0, blur_px=1.0)
+    if wall:
+        ys, xs = np.mgrid[0:H, 0:W] + 0.5
+        image[~pg.surface(cam, sphere, xs, ys)["hit"] & ((xs - cx) * out[0] + (ys - cy) * out[1] > 0.5 * r)] = 1.0
+    return cam, sphere, _quantise(image), pg.predict_highlight(cam, sphere, to_light)[0], out
+
+
+@pytest.mark.parametrize("rho", [0.9, 0.95])
+@pytest.mark.parametrize("toward_deg", [-90.0, 30.0])
+def test_a_bright_blurred_light_by_the_rim_is_centred_on_its_whole_clipped_disc(rho, toward_deg):
+    # the light clips over a disc of about 3 px radius, which crosses the outline near the
+    # rim: the part past it is the light's too (the blur spreads it there as much as
+    # inward); cut there, the centre moved inward by 0.6-1.2 px (5-12 deg)
+    cam, sphere, image, truth_px, _ = _bright_light_by_the_rim(rho, toward_deg)
     found = pg.locate_highlight(image, cam, sphere, clip_level=1.0)
-    truth_px, _ = pg.predict_highlight(cam, sphere, to_light)
     assert found.quality["clipped"] and found.quality["highlight_pixels"] > 12
     assert math.dist(found.pixel, truth_px) < 0.5
 
@@ -277,18 +287,8 @@ def test_a_clipped_wall_behind_the_rim_does_not_pull_a_highlight_by_the_rim(rho,
     # the light's clipped disc runs into it past the outline, and those pixels are not the
     # light; taken as its own, they pulled it 1.3-9.7 px outward. The disc's inner part
     # alone leaves the inward bias above (at most a pixel), never an outward pull
-    cam = pg.Camera.from_fov(W, H, FOV_DEG)
-    sphere = _sphere_at(cam, 80.0, 60.0, 8.0)
-    cx, cy, r = detect.outline_circle(cam, sphere)
-    a = math.radians(toward_deg)
-    out = np.array([math.cos(a), math.sin(a)])
-    to_light = pg.reflected_direction(cam, sphere, cx + rho * r * out[0], cy + rho * r * out[1])
-    truth_px, _ = pg.predict_highlight(cam, sphere, to_light)
-    ys, xs = np.mgrid[0:H, 0:W] + 0.5
-    wall = ~pg.surface(cam, sphere, xs, ys)["hit"] & ((xs - cx) * out[0] + (ys - cy) * out[1] > 0.5 * r)
-    image = _render(cam, sphere, to_light, light_radius_deg=1.0, radiance=3000.0, blur_px=1.0)
-    image[wall] = 1.0
-    found = pg.locate_highlight(_quantise(image), cam, sphere, clip_level=1.0)
+    cam, sphere, image, truth_px, out = _bright_light_by_the_rim(rho, toward_deg, wall=True)
+    found = pg.locate_highlight(image, cam, sphere, clip_level=1.0)
     outward = float((np.asarray(found.pixel) - truth_px) @ out)
     assert outward < 0.25 and math.dist(found.pixel, truth_px) < 1.0
 
