@@ -96,13 +96,17 @@ def refilter_set(folder: str, out: str, blur_px: float | None = None) -> None:
     of that standard deviation instead (a camera lens's, roughly)."""
     from scipy.ndimage import convolve1d, gaussian_filter
 
+    from relight.errors import DatasetError, OutputError
     from relight.fileio import atomic_write
     from relight.imageio import read_exr, write_exr, write_png
     if os.path.abspath(out) == os.path.abspath(folder):
-        raise SystemExit("--refilter: the output folder must differ from --set")
+        raise OutputError("--refilter: the output folder must differ from --set")
+    scenes = sorted(glob.glob(os.path.join(folder, "probe[0-9]*.json")))
+    if not scenes:
+        raise DatasetError(f"--refilter: no probe scenes (probeN.json) in {folder}")
     os.makedirs(out, exist_ok=True)
     w = blackman_harris_weights()
-    for path in sorted(glob.glob(os.path.join(folder, "probe[0-9]*.json"))):
+    for path in scenes:
         base = os.path.join(out, os.path.basename(path)[:-5])
         with open(path) as f:
             d = json.load(f)
@@ -400,9 +404,11 @@ def main() -> None:
     ap.add_argument("--refilter", default=None, metavar="DIR",
                     help="only write a copy of the set's Cycles renders under Blender's default pixel filter "
                          "(Blackman-Harris 1.5 px) to DIR; then run with --set DIR --renderers cycles")
-    ap.add_argument("--refilter-blur", type=float, default=None, metavar="PX",
-                    help="with --refilter: a Gaussian blur of this standard deviation (pixels) instead")
+    ap.add_argument("--refilter-blur", type=at.float_in(0.0, 10.0, "a blur in pixels", open_lo=True), default=None,
+                    metavar="PX", help="with --refilter: a Gaussian blur of this standard deviation (pixels) instead")
     args = ap.parse_args()
+    if args.refilter_blur is not None and not args.refilter:
+        ap.error("--refilter-blur needs --refilter DIR")
     if args.refilter:
         refilter_set(args.set, args.refilter, args.refilter_blur)
         return

@@ -116,6 +116,23 @@ def test_cycles_batch_setting_is_one_line(argv, option, capfd, monkeypatch):
     assert "skipped" not in out   # refused before looking for Blender
 
 
+@pytest.mark.parametrize("argv, option", [
+    (["--refilter-blur", "1.0"], "--refilter-blur"),                # the blur belongs to --refilter
+    (["--refilter", "COPY", "--refilter-blur", "-1"], "--refilter-blur"),
+    (["--refilter", "COPY", "--refilter-blur", "nan"], "--refilter-blur"),
+    (["--refilter", "SET"], "--refilter"),                          # the copy would overwrite the set
+    (["--refilter", "COPY"], "--refilter"),                         # a set with no scenes
+])
+def test_probe_refilter_setting_is_one_line(argv, option, capfd, monkeypatch, tmp_path):
+    folder, copy = tmp_path / "set", tmp_path / "copy"
+    folder.mkdir()
+    argv = [str(folder) if a == "SET" else str(copy) if a == "COPY" else a for a in argv]
+    code, _, err = _run_here(["benchmarks/bench_probe.py", "--set", str(folder), *argv], capfd, monkeypatch)
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and option in lines[0] and "error:" in lines[0], err
+    assert not copy.exists() and os.listdir(folder) == []
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("argv", COMMANDS, ids=lambda a: os.path.basename(a[0]))
 def test_quick_command_runs(argv, tmp_path):
