@@ -337,14 +337,23 @@ def test_a_bright_streak_touching_a_box_filtered_clipped_highlight_does_not_pull
     # (2.6); a descent from the clipped core ran onto it (a Cycles scene: 4.0 deg, against 0.9
     # for the clipped pixels' centroid; here 0.5 and 0.3 px)
     cam, sphere, light, spot = _streak_scene()
-    image = _render(cam, sphere, light, light_radius_deg=0.01)[..., 0]     # the sphere alone
+    alone = _render(cam, sphere, light, light_radius_deg=0.01)[..., 0]     # the sphere alone
     x, y = int(spot[0]), int(spot[1])
-    image = np.maximum(image, _streak(x + 0.5, y + 0.5, offset_px))
-    image[y, x:x + 2] = 1.0                   # the light's three clipped pixels, an L
-    image[y + 1, x + 1] = 1.0
-    found = pg.locate_highlight(_quantise(np.repeat(image[..., None], 3, -1)), cam, sphere, clip_level=1.0)
+
+    def located(image):
+        image = image.copy()
+        image[y, x:x + 2] = 1.0               # the light's three clipped pixels, an L
+        image[y + 1, x + 1] = 1.0
+        return pg.locate_highlight(_quantise(np.repeat(image[..., None], 3, -1)), cam, sphere, clip_level=1.0)
+
+    found = located(np.maximum(alone, _streak(x + 0.5, y + 0.5, offset_px)))
+    ref = located(alone)
     assert found.quality["clipped"]
-    assert math.dist(found.pixel, (x + 0.5 + 2.0 / 3.0, y + 0.5 + 1.0 / 3.0)) < 0.05
+    assert math.dist(found.pixel, ref.pixel) < 0.05
+    # and the light is where its pixels put it: within the L's box, nearer the L's
+    # corner pixel than the missing fourth one
+    assert x + 0.5 < found.pixel[0] < x + 1.5 and y + 0.5 < found.pixel[1] < y + 1.5
+    assert found.pixel[0] - (x + 1.0) > found.pixel[1] - (y + 1.0)
 
 
 @pytest.mark.parametrize("offset_px", [2.0, 2.8])

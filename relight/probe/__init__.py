@@ -6,6 +6,8 @@ a chrome sphere's highlight gives the direction, a gray sphere's shading the col
 * :mod:`relight.probe.geometry`: the same for real cameras: the sphere's 3-D centre
   from its outline, each pixel's own view ray reflected about the sphere normal,
   highlight localisation.
+* :mod:`relight.probe.footprint`: a clipped light's position from which pixels it
+  clipped (an 8-bit render's box or Blackman-Harris filter, nothing of it beside them).
 * :mod:`relight.probe.detect`: finding the spheres (circle detection, outline
   refinement, chrome or diffuse).
 * :mod:`relight.probe.locator`: a small learned network, trained on generated probe
@@ -22,5 +24,5 @@ photographs) is docs/probe.md.
 """
 
 __all__ = [
-    "detect", "geometry", "locator", "ortho", "outline_check", "run",
+    "detect", "footprint", "geometry", "locator", "ortho", "outline_check", "run",
 ]

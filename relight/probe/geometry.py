@@ -45,6 +45,7 @@ import numpy as np
 from scipy import ndimage, optimize
 from relight import frames
 from relight.errors import ProbeError
+from relight.probe import footprint
 
 HIGHLIGHT_FRACTION = 0.5       # highlight candidates: pixels >= half the brightest sphere pixel
 TIE_FRACTION = 0.98            # candidates within 2% of the peak count as equally bright (clipping)
@@ -68,6 +69,10 @@ SHADING_DOWN_LEVEL = 0.6       # a clipped candidate whose touching pixels stand
 SHADING_DOWN_WEIGHT = 1.5      # ... costs 1.5 score units per unit beyond (a lit object's patch shades down; a light drops at once)
 CLIPS_AT = 0.995               # a luminance within 0.5% of the clip level clips
 UNCLIPPED_STRIKE = 1.0         # in an image that clips on the sphere, a candidate that does not: one strike
+FOOTPRINT_MAX_PX = 30          # a clipped core of at most this many pixels is located by its footprint
+                               # (relight.probe.footprint) when its edge is hard: ...
+BLUR_TAIL_SHARE = 0.05         # ... the pixels touching it no further, at the median, than 5% of the way
+                               # from the level around them to the clip (else a blur surrounds it)
 MIRROR_SHARE = 0.25            # beside a clipped core, a pixel whose mirror image holds under 25% of it is not the light
 DOWNHILL_MARGIN = 0.05         # a highlight's blur pixel has no neighbour outside it brighter by 5% of its peak
 
@@ -531,43 +536,14 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
         # lens or pixel filter spreads a light far above the clip level into a clipped
         # disc of many pixels, and their plain centroid follows whatever bright pixels
         # lie beside it and whatever of it the outline cuts off
-        # the rim band (pixels on the sphere within RIM_EXCLUDE_PX of its outline) is left out
-        # of the search, as its pixels mix the sphere with what lies beyond; but where the
-        # chosen core runs into it at the core's own brightness, those pixels are the light
-        # (a light behind the sphere puts its highlight there), and leaving them out moves
-        # the highlight inward by up to a pixel: several degrees near the rim
-        rim_band = s["hit"] & ~usable & (s["cos_view"] > 0)
-        if mask is not None:
-            rim_band &= np.asarray(mask, bool)[y0:y1, x0:x1]
-        best_core = _core_into_rim(crop, best_core, rim_band)
-        # A clipped core also continues past the outline itself: the blur spreads the light
-        # beyond the sphere's edge as much as inward, and the disc cut there has its centre
-        # inward (a pixel, 7 deg at the median, for lights near the rim under a 1 px blur).
-        # The clipped pixels it runs into there are its own while the two together stay a
-        # disc: a clipped wall or window behind the sphere, which the core can run into
-        # too, does not. (With a mask given, what lies outside it is not looked at.)
-        if clips and mask is None:
-            whole = _core_into_rim(crop, best_core, ~s["hit"])
-            if whole.sum() > best_core.sum() and _disc_like(whole):
-                best_core = whole
-        cy_, cx_ = np.nonzero(best_core)
-        start = (float(cx_.mean()) + 0.5, float(cy_.mean()) + 0.5)
-        radius = math.sqrt(best_core.sum() / math.pi) + WINDOW_MARGIN_PX
-        yy, xx = np.mgrid[0:crop.shape[0], 0:crop.shape[1]] + 0.5
-        dist = np.hypot(xx - start[0], yy - start[1])
-        ring = usable & (dist > radius + 1.0) & (dist <= radius + 3.0)
-        level = float(np.percentile(crop[ring], 90)) if ring.sum() >= 4 else background
-        # only the light's own pixels count: those reached from its core by steps
-        # downhill (its blur falls off monotonically; a lit surface's reflection beside
-        # it, or another candidate, rises again)
-        # in a linear image (nothing clips) the light's blur continues into the rim band too,
-        # far above anything the outline's mixing can give there (half the core's peak); in a
-        # clipped one a mixed rim pixel can reach that level, so only the core itself goes there
-        rim_tail = rim_band & (crop >= HIGHLIGHT_FRACTION * float(crop[best_core].max())) if not clips else False
-        own = _downhill_from(crop, best_core, (usable | rim_tail) & ~((cores > 0) & ~best_core),
-                             int(math.ceil(radius)) + 2, prune=clips)
-        px, py = _soft_window_centroid(crop, own, start, level, radius, core=best_core if clips else None)
-        px, py = px + x0, py + y0
+        # a light far above the clip level in a narrowly filtered image (its clipped pixels
+        # hard-edged, nothing of it beside them): which pixels clip is all there is, and the
+        # footprint a light predicts locates it better than their centroid
+        centre = _clipped_footprint_centre(camera, sphere, crop, best_core, usable, (x0, y0)) if clips else None
+        if centre is None:
+            centre = _windowed_centre(crop, usable, s, None if mask is None else np.asarray(mask, bool)[y0:y1, x0:x1],
+                                      best_core, cores, clips, background)
+        px, py = centre[0] + x0, centre[1] + y0
     at_centroid = surface(camera, sphere, np.array([px]), np.array([py]))
     if compact and at_centroid["hit"][0]:
         # a small highlight: the lens blurs it symmetrically in the image, not in directions
@@ -595,6 +571,90 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     quality["error_budget_deg"] = {k: round(v, 3) for k, v in budget.items()}
     quality["uncertainty_deg"] = budget["total_deg"]
     return Highlight(to_light, (px, py), quality)
+
+
+def _clipped_footprint_centre(camera: Camera, sphere: Sphere, crop: np.ndarray, core: np.ndarray,
+                              usable: np.ndarray, origin: tuple[int, int]) -> tuple[float, float] | None:
+    """A clipped core's centre (crop pixel coordinates) from which pixels clipped
+    (:func:`relight.probe.footprint.footprint_centre`), when that is all the image says:
+    the core is small (at most :data:`FOOTPRINT_MAX_PX` pixels), two pixels clear of the
+    rim band (the mirror map is near linear over it) and hard-edged: the pixels touching
+    it stand, at the median, within :data:`BLUR_TAIL_SHARE` of the way from the level
+    two to three pixels out to the clip (on the harder set's Cycles renders 96% of the
+    clipped highlights do, under a 1 px Gaussian blur 1%). Else ``None``: a lens's or
+    wide filter's blur surrounds it, and its shape says where it is
+    (:func:`_windowed_centre`)."""
+    core = np.asarray(core, bool)
+    if core.sum() > FOOTPRINT_MAX_PX:
+        return None
+    square = np.ones((3, 3), bool)
+    near = ndimage.binary_dilation(core, square, iterations=2)
+    if (near & ~usable).any():
+        return None
+    beside = ndimage.binary_dilation(core, square)
+    touching = beside & ~core
+    around = ndimage.binary_dilation(core, square, iterations=3) & ~beside & usable
+    if around.sum() < 4:
+        return None
+    level = float(np.median(crop[around]))
+    clip = float(crop[core].max())
+    if float(np.median(crop[touching])) - level > BLUR_TAIL_SHARE * (clip - level):
+        return None
+    # every unclipped pixel touching it says the light hardly reaches it (a light far above
+    # the clip level clips what it covers by a few thousandths); another clipped pixel there
+    # (a lit surface's reflection) says nothing
+    unclipped = beside & (crop < CLIPS_AT * clip)
+    cy, cx = np.nonzero(core)
+    x, y = cx.mean() + 0.5 + origin[0], cy.mean() + 0.5 + origin[1]
+    e = 0.25
+    at = surface(camera, sphere, np.array([x + e, x - e, x, x]), np.array([y, y, y + e, y - e]))
+    if not at["hit"].all():
+        return None
+    jac = np.stack([at["reflect"][0] - at["reflect"][1], at["reflect"][2] - at["reflect"][3]], 1) / (2 * e)
+    return footprint.footprint_centre(core, unclipped, jac.T @ jac)
+
+
+def _windowed_centre(crop: np.ndarray, usable: np.ndarray, s: dict, mask: np.ndarray | None, best_core: np.ndarray,
+                     cores: np.ndarray, clips: bool, background: float) -> tuple[float, float]:
+    """A compact highlight's centre (crop pixel coordinates) in a soft window over its own
+    pixels (:func:`_soft_window_centroid`), its core continued into the rim band (within
+    ``mask``, cropped like ``crop``, if given) and, when it clips, past the outline."""
+    # the rim band (pixels on the sphere within RIM_EXCLUDE_PX of its outline) is left out
+    # of the search, as its pixels mix the sphere with what lies beyond; but where the
+    # chosen core runs into it at the core's own brightness, those pixels are the light
+    # (a light behind the sphere puts its highlight there), and leaving them out moves
+    # the highlight inward by up to a pixel: several degrees near the rim
+    rim_band = s["hit"] & ~usable & (s["cos_view"] > 0)
+    if mask is not None:
+        rim_band &= mask
+    best_core = _core_into_rim(crop, best_core, rim_band)
+    # A clipped core also continues past the outline itself: the blur spreads the light
+    # beyond the sphere's edge as much as inward, and the disc cut there has its centre
+    # inward (a pixel, 7 deg at the median, for lights near the rim under a 1 px blur).
+    # The clipped pixels it runs into there are its own while the two together stay a
+    # disc: a clipped wall or window behind the sphere, which the core can run into
+    # too, does not. (With a mask given, what lies outside it is not looked at.)
+    if clips and mask is None:
+        whole = _core_into_rim(crop, best_core, ~s["hit"])
+        if whole.sum() > best_core.sum() and _disc_like(whole):
+            best_core = whole
+    cy_, cx_ = np.nonzero(best_core)
+    start = (float(cx_.mean()) + 0.5, float(cy_.mean()) + 0.5)
+    radius = math.sqrt(best_core.sum() / math.pi) + WINDOW_MARGIN_PX
+    yy, xx = np.mgrid[0:crop.shape[0], 0:crop.shape[1]] + 0.5
+    dist = np.hypot(xx - start[0], yy - start[1])
+    ring = usable & (dist > radius + 1.0) & (dist <= radius + 3.0)
+    level = float(np.percentile(crop[ring], 90)) if ring.sum() >= 4 else background
+    # only the light's own pixels count: those reached from its core by steps
+    # downhill (its blur falls off monotonically; a lit surface's reflection beside
+    # it, or another candidate, rises again)
+    # in a linear image (nothing clips) the light's blur continues into the rim band too,
+    # far above anything the outline's mixing can give there (half the core's peak); in a
+    # clipped one a mixed rim pixel can reach that level, so only the core itself goes there
+    rim_tail = rim_band & (crop >= HIGHLIGHT_FRACTION * float(crop[best_core].max())) if not clips else False
+    own = _downhill_from(crop, best_core, (usable | rim_tail) & ~((cores > 0) & ~best_core),
+                         int(math.ceil(radius)) + 2, prune=clips)
+    return _soft_window_centroid(crop, own, start, level, radius, core=best_core if clips else None)
 
 
 def _principal_variances(xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
