@@ -296,14 +296,20 @@ RADIUS_BINS_PX = ((10.0, 15.0), (15.0, 20.0), (20.0, 45.0))   # the team's rende
 def png_floor(folder: str) -> None:
     """What an 8-bit file leaves of the light's position (Cycles, circle exact): the
     light's pixels are the connected region of the EXR, at the PNG's exposure, that the
-    PNG clips and holds the brightest one; their intensity centroid (what the EXR gives)
-    and their plain centroid (what the clipped plateau gives: a pixel the light touches
-    by 2% clips as one it fills), each reflected on the true sphere, against the truth."""
+    PNG clips and holds the brightest one; their intensity centroid (what the EXR gives),
+    their plain centroid (what the clipped plateau gives: a pixel the light touches by 2%
+    clips as one it fills), the footprint a light predicts from which pixels clip
+    (:mod:`relight.probe.footprint`, its size unknown, as ``relight probe`` has it) and the
+    same knowing the light's true angular size (the floor of what the clipped pixels
+    say), each reflected on the true sphere, against the truth. (Lights within two pixels
+    of the rim band keep the plain centroid in the footprint rows, as in ``relight probe``.)"""
     from scipy import ndimage
 
+    from relight.probe import footprint
     from relight.probe import geometry as geom
     from relight.probe.detect import read_probe_image
-    errs: dict = {"EXR intensity centroid": [], "clipped-pixel centroid (8-bit)": []}
+    errs: dict = {"EXR intensity centroid": [], "clipped-pixel centroid (8-bit)": [],
+                  "footprint, size unknown (8-bit)": [], "footprint, true size (floor)": []}
     radii = []
     for scene_path in sorted(glob.glob(os.path.join(folder, "probe*.json"))):
         with open(scene_path) as f:
@@ -316,11 +322,24 @@ def png_floor(folder: str) -> None:
         (x0, y0, x1, y1), _, s = geom.sphere_pixels(cam, sphere, rim_exclude_px=0.0)
         crop = np.where(s["hit"], exr[y0:y1, x0:x1].mean(-1) * d["png_exposure"], 0.0)
         labels, _ = ndimage.label(crop >= 1.0, np.ones((3, 3)))
-        ys, xs = np.nonzero(labels == labels[np.unravel_index(np.argmax(crop), crop.shape)])
-        for name, w in zip(errs, (crop[ys, xs], np.ones(len(xs)))):
-            px = np.array([np.average(xs + 0.5, weights=w) + x0])
-            py = np.array([np.average(ys + 0.5, weights=w) + y0])
-            hit = geom.surface(cam, sphere, px, py)
+        light = labels == labels[np.unravel_index(np.argmax(crop), crop.shape)]
+        ys, xs = np.nonzero(light)
+        centres = [(np.average(xs + 0.5, weights=w), np.average(ys + 0.5, weights=w))
+                   for w in (crop[ys, xs], np.ones(len(xs)))]
+        near = ndimage.binary_dilation(light, np.ones((3, 3), bool), iterations=2)
+        clear = not (near & ~geom.usable_pixels(cam, sphere, (x0, y0, x1, y1), s)).any()
+        jac = geom.mirror_jacobian(cam, sphere, centres[1][0] + x0, centres[1][1] + y0) if clear else None
+        if jac is None:   # by the rim, where relight probe does not use the footprint either
+            centres += [centres[1]] * 2
+        else:
+            metric = jac.T @ jac
+            lt, chrome = d["light"], d["chrome"]["centre_m"]
+            angle = math.asin(lt["radius_m"] / float(np.linalg.norm(np.subtract(lt["position_m"], chrome))))
+            observed = ndimage.binary_dilation(light, np.ones((3, 3), bool)) & s["hit"] & ((crop < 1.0) | light)
+            for size in (None, angle / np.linalg.det(metric) ** 0.25):
+                centres.append(footprint.footprint_centre(light, observed, metric, size))
+        for name, (cx, cy) in zip(errs, centres):
+            hit = geom.surface(cam, sphere, np.array([cx + x0]), np.array([cy + y0]))
             errs[name].append(_angle_deg(hit["reflect"][0], t["to_light_camera"]) if hit["hit"][0] else 180.0)
     radii = np.array(radii)
     for name, e in errs.items():

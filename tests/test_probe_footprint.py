@@ -53,7 +53,7 @@ def test_a_light_touching_three_of_four_pixels_is_placed_better_than_their_centr
     # centroid lies a sixth of a pixel from the corner each way, the light itself nearer
     # the pixel between the other two (on a sample of such lights: 0.15 px against 0.26)
     rng = np.random.default_rng(5)
-    err, cen = [], []
+    err, known, cen = [], [], []
     while len(err) < 16:
         centre = 8.0 + rng.uniform(-0.5, 0.5, 2)
         radius = rng.uniform(0.3, 0.9)
@@ -62,8 +62,12 @@ def test_a_light_touching_three_of_four_pixels_is_placed_better_than_their_centr
         if len(xs) != 3 or np.ptp(xs) != 1 or np.ptp(ys) != 1:
             continue
         err.append(math.dist(footprint.footprint_centre(clipped, _observed(clipped), metric), centre))
+        # the light's size known (the radius of the disc of the ellipse's area): the floor
+        size = radius / np.linalg.det(metric) ** 0.25
+        known.append(math.dist(footprint.footprint_centre(clipped, _observed(clipped), metric, size), centre))
         cen.append(math.dist((xs.mean() + 0.5, ys.mean() + 0.5), centre))
     assert np.mean(err) < 0.75 * np.mean(cen)
+    assert np.mean(known) < np.mean(err)
 
 
 def _non_rectangular_cores(sphere_deg, light_deg, count, seed=1):

@@ -73,7 +73,8 @@ def _coverage(metric: np.ndarray, sizes: np.ndarray, half_px: int, pixel_filter:
     return ndimage.convolve1d(ndimage.convolve1d(inside, w, axis=1, mode="constant"), w, axis=2, mode="constant")
 
 
-def footprint_centre(clipped: np.ndarray, observed: np.ndarray, metric: np.ndarray) -> tuple[float, float]:
+def footprint_centre(clipped: np.ndarray, observed: np.ndarray, metric: np.ndarray,
+                     size_px: float | None = None) -> tuple[float, float]:
     """Posterior-mean centre ``(x, y)`` (pixel coordinates, centres at +0.5) of a light's
     elliptical image from which pixels clipped.
 
@@ -84,6 +85,8 @@ def footprint_centre(clipped: np.ndarray, observed: np.ndarray, metric: np.ndarr
             the rim) say nothing.
         metric: ``(2, 2)`` symmetric positive definite, the ellipse's shape in pixel
             offsets (only its shape matters: it is scaled to unit determinant).
+        size_px: the light's size if known (the radius of the disc of the ellipse's area,
+            pixels): the floor of what the clipped pixels say (`bench_probe.py --floor`).
     """
     clipped = np.asarray(clipped, bool)
     if not clipped.any():
@@ -103,7 +106,7 @@ def footprint_centre(clipped: np.ndarray, observed: np.ndarray, metric: np.ndarr
     ox = np.rint((xs + 0.5 - start[0]) * SUBSTEPS).astype(int)[:, None, None] - steps[None, None, :]
     oy = np.rint((ys + 0.5 - start[1]) * SUBSTEPS).astype(int)[:, None, None] - steps[None, :, None]
     top = math.sqrt(clipped.sum() / math.pi) + 1.5
-    sizes = np.linspace(0.05, top, SIZES)
+    sizes = np.linspace(0.05, top, SIZES) if size_px is None else np.array([float(size_px)])
     # the coverage is needed out to the farthest offset plus the support: the grid ends there
     far = max(int(np.abs(ox).max()), int(np.abs(oy).max())) / SUBSTEPS
     half_px = int(math.ceil(far + BH_SPAN_PX / 2)) + 1

@@ -32,7 +32,7 @@ __all__ = [
     "CLIPS_AT", "UNCLIPPED_STRIKE", "LIT_FRACTION", "DIFFUSE_RIM_FRACTION", "ORTHO_DEPTH",
     "OUTLINE_LOSS_SCALE_PX", "Camera", "Sphere", "sphere_from_cone", "sphere_from_circle", "fit_sphere",
     "mask_outline_points", "sphere_from_mask", "outline_circle", "outline_polygon", "bounding_box", "surface",
-    "reflected_direction", "predict_highlight", "Highlight", "sphere_pixels", "sphere_surface", "usable_pixels", "locate_highlight",
+    "reflected_direction", "mirror_jacobian", "predict_highlight", "Highlight", "sphere_pixels", "sphere_surface", "usable_pixels", "locate_highlight",
     "highlight_likelihood",
     "diffuse_light",
     "error_budget",
@@ -605,13 +605,20 @@ def _clipped_footprint_centre(camera: Camera, sphere: Sphere, crop: np.ndarray, 
     # (a lit surface's reflection) says nothing
     unclipped = beside & (crop < CLIPS_AT * clip)
     cy, cx = np.nonzero(core)
-    x, y = cx.mean() + 0.5 + origin[0], cy.mean() + 0.5 + origin[1]
-    e = 0.25
+    jac = mirror_jacobian(camera, sphere, cx.mean() + 0.5 + origin[0], cy.mean() + 0.5 + origin[1])
+    return None if jac is None else footprint.footprint_centre(core, unclipped, jac.T @ jac)
+
+
+def mirror_jacobian(camera: Camera, sphere: Sphere, x: float, y: float, step_px: float = 0.25) -> np.ndarray | None:
+    """How the reflected direction changes per pixel at ``(x, y)``: ``(3, 2)``, columns
+    d/dx and d/dy by central differences ``step_px`` each way (``None`` off the sphere). A
+    small light of angular radius ``a`` seen in the mirror there covers the pixel offsets
+    ``d`` with ``|J d| < a``."""
+    e = step_px
     at = surface(camera, sphere, np.array([x + e, x - e, x, x]), np.array([y, y, y + e, y - e]))
     if not at["hit"].all():
         return None
-    jac = np.stack([at["reflect"][0] - at["reflect"][1], at["reflect"][2] - at["reflect"][3]], 1) / (2 * e)
-    return footprint.footprint_centre(core, unclipped, jac.T @ jac)
+    return np.stack([at["reflect"][0] - at["reflect"][1], at["reflect"][2] - at["reflect"][3]], 1) / (2 * e)
 
 
 def _windowed_centre(crop: np.ndarray, usable: np.ndarray, s: dict, mask: np.ndarray | None, best_core: np.ndarray,
