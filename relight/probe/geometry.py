@@ -452,7 +452,10 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     reflected view rays weighted by intensity and by each pixel's solid angle. A compact
     core that clips, however large (a lens's blur spreads a light far above the clip level
     into a clipped disc), is centred in a soft window over its own pixels, continued past
-    the outline, where the blur spreads it as far as inward (:func:`_soft_window_centroid`).
+    the outline, where the blur spreads it as far as inward (:func:`_soft_window_centroid`),
+    unless nothing of the light lies beside its clipped pixels (a box or Blackman-Harris
+    pixel filter and no lens blur): then which pixels clip is all the image says, and the
+    footprint a light predicts places it (:func:`_clipped_footprint_centre`).
 
     Args:
         image: linear RGB ``(H, W, 3)`` or luminance ``(H, W)``.
@@ -529,16 +532,16 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     compact = _spread_deg(refl[light_pixels]) <= spread_limit
     if compact and (clips or region.sum() <= SMALL_HIGHLIGHT_PX
                     or (merged and best_core.sum() <= SMALL_HIGHLIGHT_PX)):
-        # the core's own centre, then a soft window around it above the level of its
-        # surroundings (the 90th percentile of a ring just outside the window: a lit
-        # floor's reflection beside a small clipped highlight, or touching it, must not
-        # pull it). Every compact clipped core is measured so, however large: a blurred
-        # lens or pixel filter spreads a light far above the clip level into a clipped
-        # disc of many pixels, and their plain centroid follows whatever bright pixels
-        # lie beside it and whatever of it the outline cuts off
         # a light far above the clip level in a narrowly filtered image (its clipped pixels
         # hard-edged, nothing of it beside them): which pixels clip is all there is, and the
-        # footprint a light predicts locates it better than their centroid
+        # footprint a light predicts locates it better than their centroid. Else the core's
+        # own centre, then a soft window around it above the level of its surroundings (the
+        # 90th percentile of a ring just outside the window: a lit floor's reflection beside
+        # a small clipped highlight, or touching it, must not pull it). Every other compact
+        # clipped core is measured so, however large: a blurred lens or pixel filter spreads
+        # a light far above the clip level into a clipped disc of many pixels, and their
+        # plain centroid follows whatever bright pixels lie beside it and whatever of it the
+        # outline cuts off
         centre = _clipped_footprint_centre(camera, sphere, crop, best_core, usable, (x0, y0)) if clips else None
         if centre is None:
             centre = _windowed_centre(crop, usable, s, None if mask is None else np.asarray(mask, bool)[y0:y1, x0:x1],
