@@ -122,10 +122,12 @@ def refilter_set(folder: str, out: str, blur_px: float | None = None) -> None:
     print(f"wrote the {how} copy of {folder} to {out}")
 
 
-def make_set(folder: str, count: int, spp: int, first: int = 0, cycles: bool = True) -> None:
+def make_set(folder: str, count: int, spp: int, first: int = 0, cycles: bool = True,
+             pixel_filter: str = "box") -> None:
     """Write ``count`` probe scenes (seeds ``first`` on) and their Mitsuba and (unless not
     ``cycles``) Cycles renders into ``folder`` (existing files are kept: the set grows or
-    resumes)."""
+    resumes); Cycles with ``pixel_filter`` (``relight.verify.probe_scenes.CYCLES_PIXEL_FILTERS``:
+    a box one pixel wide, Mitsuba's, or Blender's default Blackman-Harris 1.5 px)."""
     from tqdm import tqdm
 
     from relight import backend
@@ -157,7 +159,7 @@ def make_set(folder: str, count: int, spp: int, first: int = 0, cycles: bool = T
     if not todo:
         return
     env = dict(os.environ, PYTHONPATH=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    cmd = [python, "-m", "relight.verify.probe_scenes", "cycles", *todo, "--spp", str(spp)]
+    cmd = [python, "-m", "relight.verify.probe_scenes", "cycles", *todo, "--spp", str(spp), "--pixel-filter", pixel_filter]
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, text=True)
     for line in tqdm(proc.stdout, total=len(todo), desc="Cycles renders", unit="scene"):
         npy = line.strip()
@@ -408,6 +410,9 @@ def main() -> None:
     ap.add_argument("--no-cycles", action="store_true",
                     help="with --make: Mitsuba renders only (fast; e.g. training scenes for a learned detector)")
     ap.add_argument("--spp", type=at.spp, default=64, help="samples per pixel when making the set")
+    ap.add_argument("--cycles-filter", choices=("box", "blackman-harris"), default="box",
+                    help="with --make: Cycles' pixel filter (box 1 px as Mitsuba's, the set's; blackman-harris: "
+                         "Blender's default, 1.5 px)")
     ap.add_argument("--renderers", default="cycles,mitsuba")
     ap.add_argument("--kinds", default="png,exr", help="which files of the set: png (8-bit) and/or exr")
     ap.add_argument("--no-psm", action="store_true", help="skip shared/data/psm_spheres")
@@ -428,11 +433,13 @@ def main() -> None:
     args = ap.parse_args()
     if args.refilter_blur is not None and not args.refilter:
         ap.error("--refilter-blur needs --refilter DIR")
+    if args.cycles_filter != "box" and not args.make:
+        ap.error("--cycles-filter needs --make N (it sets how the set's Cycles renders are made)")
     if args.refilter:
         refilter_set(args.set, args.refilter, args.refilter_blur)
         return
     if args.make:
-        make_set(args.set, args.make, args.spp, args.first, cycles=not args.no_cycles)
+        make_set(args.set, args.make, args.spp, args.first, cycles=not args.no_cycles, pixel_filter=args.cycles_filter)
     if args.floor:
         png_floor(args.set)
         return

@@ -122,6 +122,8 @@ def test_cycles_batch_setting_is_one_line(argv, option, capfd, monkeypatch):
     (["--refilter", "COPY", "--refilter-blur", "nan"], "--refilter-blur"),
     (["--refilter", "SET"], "--refilter"),                          # the copy would overwrite the set
     (["--refilter", "COPY"], "--refilter"),                         # a set with no scenes
+    (["--cycles-filter", "blackman-harris"], "--cycles-filter"),    # the filter belongs to --make
+    (["--make", "2", "--cycles-filter", "gaussian"], "--cycles-filter"),
 ])
 def test_probe_refilter_setting_is_one_line(argv, option, capfd, monkeypatch, tmp_path):
     folder, copy = tmp_path / "set", tmp_path / "copy"

@@ -25,7 +25,7 @@ __all__ = [
     "GROUND_ALBEDO", "WINDOW_RADIANCE", "MAX_VIEW_LIGHT_ANGLE_DEG", "MIN_LIGHT_ELEVATION_DEG", "FOV_RANGE_DEG",
     "RADIUS_PX_RANGE", "FIREFLY_RATIO", "DEPTH_RANGE", "ProbeScene", "sample_probe_scene", "remove_fireflies",
     "render_probe_scene",
-    "specular_point", "sample_room_scene", "room_sphere_camera", "room_circle", "room_sphere", "render_room_mitsuba", "render_room_cycles", "main",
+    "specular_point", "sample_room_scene", "room_sphere_camera", "room_circle", "room_sphere", "render_room_mitsuba", "CYCLES_PIXEL_FILTERS", "render_room_cycles", "main",
 ]
 
 import math
@@ -556,12 +556,18 @@ def render_room_mitsuba(d: dict, spp: int | None = None) -> np.ndarray:
     return render.render_scene(loaded, spp or spec.render.spp, spec.render.seed)[..., :3]
 
 
-def render_room_cycles(d: dict, spp: int | None = None, threads: int | None = 1) -> np.ndarray:
+CYCLES_PIXEL_FILTERS = {"box": ("BOX", 1.0), "blackman-harris": ("BLACKMAN_HARRIS", 1.5)}   # name: (Cycles' filter, width px)
+
+
+def render_room_cycles(d: dict, spp: int | None = None, threads: int | None = 1,
+                       pixel_filter: str = "box") -> np.ndarray:
     """Cycles render (linear RGB, float32) of a probe-scene dict, in the bpy environment:
     the room by :func:`relight.scene.blender.export_blender`, then the spheres (Cycles point
     clouds, which it renders as exact spheres; the chrome one a Glossy BSDF of roughness
     0) and the light (a point light of the light's radius, so a sphere, seen in the
-    mirror through multiple importance sampling), glossy bounces allowed."""
+    mirror through multiple importance sampling), glossy bounces allowed. ``pixel_filter``
+    (:data:`CYCLES_PIXEL_FILTERS`): a box one pixel wide, as Mitsuba's (export_blender's
+    default), or Blackman-Harris 1.5 px, Blender's own default."""
     import tempfile
 
     import bpy
@@ -571,6 +577,7 @@ def render_room_cycles(d: dict, spp: int | None = None, threads: int | None = 1)
     spec = SceneSpec.from_dict(d["scene"])
     scene = blender.export_blender(spec, spp=spp, threads=threads)
     c = scene.cycles
+    c.pixel_filter_type, c.filter_width = CYCLES_PIXEL_FILTERS[pixel_filter]
     c.max_bounces = spec.render.max_depth
     c.diffuse_bounces = spec.render.max_depth - 2
     c.glossy_bounces = 2
@@ -641,6 +648,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("scenes", nargs="+")
     ap.add_argument("--spp", type=int, default=None)
     ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--pixel-filter", choices=sorted(CYCLES_PIXEL_FILTERS), default="box")
     args = ap.parse_args(argv)
     from relight.fileio import atomic_write
     for path in args.scenes:
@@ -649,7 +657,7 @@ def main(argv: list[str] | None = None) -> int:
             continue
         with open(path) as f:
             d = json.load(f)
-        image = render_room_cycles(d, spp=args.spp, threads=args.threads)
+        image = render_room_cycles(d, spp=args.spp, threads=args.threads, pixel_filter=args.pixel_filter)
 
         def save(tmp, image=image):
             with open(tmp, "wb") as f:
