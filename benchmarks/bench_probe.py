@@ -51,6 +51,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from relight.net.photos import shared_data_dir  # noqa: E402
+from relight.probe.footprint import BH_COEFFICIENTS, BH_SPAN_PX  # noqa: E402
 
 PSM = os.path.join(shared_data_dir(), "psm_spheres")   # $RELIGHT_SHARED_DATA, else next to the checkout
 TARGETS = {"cycles png, circle given": (1.0, 5.0), "cycles png, circles given (+gray)": (1.0, 5.0),
@@ -65,15 +66,15 @@ def _angle_deg(a, b) -> float:
     return float(angle_deg(a, b))
 
 
-BH_WIDTH_PX = 1.5   # Blender's default pixel filter: Blackman-Harris of width 1.5, which Cycles
-#                     spreads over twice that (film.cpp's filter table): support +-1.5 px
+BH_WIDTH_PX = BH_SPAN_PX / 2   # Blender's default pixel filter: Blackman-Harris of width 1.5, which
+#                                Cycles spreads over twice that (film.cpp's filter table): support +-1.5 px
 
 
 def blackman_harris_weights(width_px: float = BH_WIDTH_PX) -> np.ndarray:
     """1-D weights of Cycles' Blackman-Harris pixel filter over whole-pixel offsets
     ``-2..2``: the window (support ``+-width_px``) integrated in closed form over each
     offset's pixel ``[k - 0.5, k + 0.5]``, normalised to sum 1 (the filter is separable)."""
-    a = (0.35875, -0.48829, 0.14128, -0.01168)
+    a = BH_COEFFICIENTS
     span = 2.0 * width_px
 
     def antiderivative(x):   # of sum_j a_j cos(2 pi j (x / span + 1/2)) on the support
@@ -328,7 +329,8 @@ def png_floor(folder: str) -> None:
         ys, xs = np.nonzero(light)
         centres = [(np.average(xs + 0.5, weights=w), np.average(ys + 0.5, weights=w))
                    for w in (crop[ys, xs], np.ones(len(xs)))]
-        near = ndimage.binary_dilation(light, np.ones((3, 3), bool), iterations=2)
+        beside = ndimage.binary_dilation(light, np.ones((3, 3), bool))
+        near = ndimage.binary_dilation(beside, np.ones((3, 3), bool))
         clear = not (near & ~geom.usable_pixels(cam, sphere, (x0, y0, x1, y1), s)).any()
         jac = geom.mirror_jacobian(cam, sphere, centres[1][0] + x0, centres[1][1] + y0) if clear else None
         if jac is None:   # by the rim, where relight probe does not use the footprint either
@@ -337,7 +339,7 @@ def png_floor(folder: str) -> None:
             metric = jac.T @ jac
             lt, chrome = d["light"], d["chrome"]["centre_m"]
             angle = math.asin(lt["radius_m"] / float(np.linalg.norm(np.subtract(lt["position_m"], chrome))))
-            observed = ndimage.binary_dilation(light, np.ones((3, 3), bool)) & s["hit"] & ((crop < 1.0) | light)
+            observed = beside & s["hit"] & ((crop < 1.0) | light)
             for size in (None, angle / np.linalg.det(metric) ** 0.25):
                 centres.append(footprint.footprint_centre(light, observed, metric, size))
         for name, (cx, cy) in zip(errs, centres):
@@ -400,6 +402,7 @@ def report(rows: list, detect: list, worst: int = 0) -> None:
 
 def main() -> None:
     from relight.commands import argtypes as at
+    from relight.verify.probe_scenes import CYCLES_PIXEL_FILTERS
     ap = at.OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--set", default=os.path.expanduser(os.path.join("~", "relight-data", "issue-29", "set")),
                     help="folder of the harder probe set")
@@ -410,7 +413,7 @@ def main() -> None:
     ap.add_argument("--no-cycles", action="store_true",
                     help="with --make: Mitsuba renders only (fast; e.g. training scenes for a learned detector)")
     ap.add_argument("--spp", type=at.spp, default=64, help="samples per pixel when making the set")
-    ap.add_argument("--cycles-filter", choices=("box", "blackman-harris"), default="box",
+    ap.add_argument("--cycles-filter", choices=sorted(CYCLES_PIXEL_FILTERS), default="box",
                     help="with --make: Cycles' pixel filter (box 1 px as Mitsuba's, the set's; blackman-harris: "
                          "Blender's default, 1.5 px)")
     ap.add_argument("--renderers", default="cycles,mitsuba")

@@ -21,12 +21,12 @@ symmetric under a half turn (a rectangle) keeps its centre; elsewhere (three pix
 four, an L) the light lies nearer the middle pixel than their centroid says. On the
 harder probe set's Cycles renders (820 scenes, the true circle) the median highlight
 error went 1.04 -> 0.98 deg (three clipped pixels: 0.21 -> 0.17 px); knowing each
-light's true size would give 0.92, the binary image's floor (docs/probe.md, nineteenth
-round).
+light's true size gives 0.95, the binary image's floor (``bench_probe.py --floor``;
+docs/probe.md, nineteenth round).
 """
 from __future__ import annotations
 
-__all__ = ["SUBSTEPS", "SIZES", "PIXEL_FILTERS", "BH_SPAN_PX", "SAMPLES", "OUTLIER", "SEARCH_PX", "footprint_centre"]
+__all__ = ["SUBSTEPS", "SIZES", "PIXEL_FILTERS", "BH_SPAN_PX", "BH_COEFFICIENTS", "SAMPLES", "OUTLIER", "SEARCH_PX", "footprint_centre"]
 
 import math
 
@@ -38,6 +38,7 @@ SIZES = 32                        # light sizes tried, from 0.05 px to the clipp
 PIXEL_FILTERS = ("box", "blackman-harris")   # a box one pixel wide (Mitsuba's, export-blender's);
                                   # Blackman-Harris 1.5 px, which Cycles spreads over 3 px (Blender's default)
 BH_SPAN_PX = 3.0                  # the span Cycles gives Blackman-Harris 1.5 px (its filter table)
+BH_COEFFICIENTS = (0.35875, -0.48829, 0.14128, -0.01168)   # the window: sum_j a_j cos(2 pi j u), u in [0, 1]
 SAMPLES = 1000                    # a pixel covered by a share a stays unclipped with probability (1 - a)^N
 OUTLIER = 1e-4                    # ... and any pixel's observation is at least this likely (noise, a stray hit)
 SEARCH_PX = 1.0                   # centres within this of the clipped pixels' centroid, in x and y
@@ -48,29 +49,30 @@ def _blackman_harris(span_px: float = BH_SPAN_PX) -> np.ndarray:
     on the fine grid, summing to 1."""
     n = int(round(span_px * SUBSTEPS / 2))
     u = np.arange(-n, n + 1) / (2 * n) + 0.5
-    a = (0.35875, -0.48829, 0.14128, -0.01168)
-    w = sum(a[j] * np.cos(2 * np.pi * j * u) for j in range(4))
+    w = sum(a * np.cos(2 * np.pi * j * u) for j, a in enumerate(BH_COEFFICIENTS))
     return w / w.sum()
 
 
-def _coverage(metric: np.ndarray, sizes: np.ndarray, half_px: int, pixel_filter: str) -> np.ndarray:
-    """Share of a pixel's filter (:data:`PIXEL_FILTERS`) that the ellipse
-    ``d^T metric d < size^2`` centred at the origin covers, for each of ``sizes`` and
-    pixels centred on a fine grid of offsets ``-half_px .. half_px`` px in
-    :data:`SUBSTEPS` steps: ``(len(sizes), n, n)``."""
+def _box() -> np.ndarray:
+    """A box one pixel wide on the fine grid, centred: the trapezoid rule over
+    :data:`SUBSTEPS` steps (an even-sized uniform filter would sit half a step off centre)."""
+    w = np.ones(SUBSTEPS + 1)
+    w[[0, -1]] = 0.5
+    return w / SUBSTEPS
+
+
+def _coverages(metric: np.ndarray, sizes: np.ndarray, half_px: int) -> list[np.ndarray]:
+    """Share of a pixel's filter that the ellipse ``d^T metric d < size^2`` centred at the
+    origin covers, for each of ``sizes`` and pixels centred on a fine grid of offsets
+    ``-half_px .. half_px`` px in :data:`SUBSTEPS` steps: one ``(len(sizes), n, n)`` array
+    for each of :data:`PIXEL_FILTERS`."""
     g = np.arange(-half_px * SUBSTEPS, half_px * SUBSTEPS + 1) / SUBSTEPS
     x, y = np.meshgrid(g, g)
     q = metric[0, 0] * x * x + 2.0 * metric[0, 1] * x * y + metric[1, 1] * y * y
     inside = (q[None] < (sizes * sizes)[:, None, None]).astype(np.float64)
-    if pixel_filter == "box":
-        # a pixel wide, centred: the trapezoid rule over SUBSTEPS steps (an even-sized
-        # uniform filter would sit half a step off centre)
-        w = np.ones(SUBSTEPS + 1)
-        w[[0, -1]] = 0.5
-        w /= SUBSTEPS
-    else:
-        w = _blackman_harris()
-    return ndimage.convolve1d(ndimage.convolve1d(inside, w, axis=1, mode="constant"), w, axis=2, mode="constant")
+    kernels = {"box": _box, "blackman-harris": _blackman_harris}
+    return [ndimage.convolve1d(ndimage.convolve1d(inside, w, axis=1, mode="constant"), w, axis=2, mode="constant")
+            for w in (kernels[f]() for f in PIXEL_FILTERS)]
 
 
 def footprint_centre(clipped: np.ndarray, observed: np.ndarray, metric: np.ndarray,
@@ -112,8 +114,8 @@ def footprint_centre(clipped: np.ndarray, observed: np.ndarray, metric: np.ndarr
     half_px = int(math.ceil(far + BH_SPAN_PX / 2)) + 1
     reach = half_px * SUBSTEPS
     logs = []
-    for pixel_filter in PIXEL_FILTERS:
-        a = _coverage(m, sizes, half_px, pixel_filter)[:, oy + reach, ox + reach]   # (sizes, pixels, y, x)
+    for coverage in _coverages(m, sizes, half_px):
+        a = coverage[:, oy + reach, ox + reach]   # (sizes, pixels, y, x)
         log_unclipped = SAMPLES * np.log1p(-np.clip(a, 0.0, 1.0 - 1e-12))
         p = np.where(hit[None, :, None, None], -np.expm1(log_unclipped), np.exp(log_unclipped))
         logs.append(np.log(np.maximum(p, OUTLIER)).sum(1))

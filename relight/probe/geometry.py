@@ -591,12 +591,12 @@ def _clipped_footprint_centre(camera: Camera, sphere: Sphere, crop: np.ndarray, 
     if core.sum() > FOOTPRINT_MAX_PX:
         return None
     square = np.ones((3, 3), bool)
-    near = ndimage.binary_dilation(core, square, iterations=2)
+    beside = ndimage.binary_dilation(core, square)
+    near = ndimage.binary_dilation(beside, square)
     if (near & ~usable).any():
         return None
-    beside = ndimage.binary_dilation(core, square)
     touching = beside & ~core
-    around = ndimage.binary_dilation(core, square, iterations=3) & ~beside & usable
+    around = ndimage.binary_dilation(near, square) & ~beside & usable
     if around.sum() < 4:
         return None
     level = float(np.median(crop[around]))
