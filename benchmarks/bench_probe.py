@@ -305,7 +305,11 @@ def png_floor(folder: str) -> None:
     (:mod:`relight.probe.footprint`, its size unknown, as ``relight probe`` has it) and the
     same knowing the light's true angular size (the floor of what the clipped pixels
     say), each reflected on the true sphere, against the truth. (Lights within two pixels
-    of the rim band keep the plain centroid in the footprint rows, as in ``relight probe``.)"""
+    of the rim band keep the plain centroid in the footprint rows, as in ``relight probe``;
+    scenes whose light does not clip are left out and counted.) "over 5": scenes beyond
+    the circle-given target's maximum: where even the EXR's centroid is, a light's image
+    within a pixel or two on a small sphere near its rim, no estimator of these pixels
+    reaches it."""
     from scipy import ndimage
 
     from relight.probe import footprint
@@ -313,17 +317,20 @@ def png_floor(folder: str) -> None:
     from relight.probe.detect import read_probe_image
     errs: dict = {"EXR intensity centroid": [], "clipped-pixel centroid (8-bit)": [],
                   "footprint, size unknown (8-bit)": [], "footprint, true size (floor)": []}
-    radii = []
+    radii, unclipped = [], 0
     for scene_path in sorted(glob.glob(os.path.join(folder, "probe*.json"))):
         with open(scene_path) as f:
             d = json.load(f)
         t = d["truth"]
-        radii.append(float(t["chrome_circle"][2]))
         exr = read_probe_image(scene_path[:-5] + ".cycles.exr")[0]
         cam = geom.Camera.from_fov(exr.shape[1], exr.shape[0], t["fov_deg"])
         sphere = geom.sphere_from_circle(cam, *t["chrome_circle"])
         (x0, y0, x1, y1), _, s = geom.sphere_pixels(cam, sphere, rim_exclude_px=0.0)
         crop = np.where(s["hit"], exr[y0:y1, x0:x1].mean(-1) * d["png_exposure"], 0.0)
+        if crop.max() < 1.0:   # the light does not clip in the PNG: no floor of clipped pixels to measure
+            unclipped += 1
+            continue
+        radii.append(float(t["chrome_circle"][2]))
         labels, _ = ndimage.label(crop >= 1.0, np.ones((3, 3)))
         light = labels == labels[np.unravel_index(np.argmax(crop), crop.shape)]
         ys, xs = np.nonzero(light)
@@ -346,10 +353,12 @@ def png_floor(folder: str) -> None:
             hit = geom.surface(cam, sphere, np.array([cx + x0]), np.array([cy + y0]))
             errs[name].append(_angle_deg(hit["reflect"][0], t["to_light_camera"]) if hit["hit"][0] else 180.0)
     radii = np.array(radii)
+    if unclipped:
+        print(f"8-bit floor: {unclipped} scene(s) left out, their light not clipped in the PNG")
     for name, e in errs.items():
         e = np.array(e)
         print(f"8-bit floor, {name:<32} n {len(e)} median {np.median(e):.2f} p90 {np.percentile(e, 90):.2f} "
-              f"max {np.max(e):.2f}")
+              f"max {np.max(e):.2f} over 5 {int((e > 5.0).sum())}")
         for lo, hi in RADIUS_BINS_PX:   # the sphere's size sets what a pixel of position costs
             sel = e[(radii >= lo) & (radii < hi)]
             if len(sel):
