@@ -246,15 +246,16 @@ def edge_points(smoothed: np.ndarray, camera: Camera, guess: Sphere, band_px: fl
     the image's linear interpolation, weighted toward the guess (``prior``), placed to a
     fraction of the sampling step by a parabola through its gradient.
 
-    With ``peak`` (a final outline's fit) the chosen edge is placed at its own gradient's
-    peak (:func:`_climb`) in a cubic spline's samples (:func:`_spline_samples`). Otherwise
-    its place is read where the weighted choice fell, and can sit up to half a step from
-    it toward the guess, and in a linear interpolation, whose gradient is constant
-    between pixel centres (55% of the points lay on the lattice's half steps): a fit
-    stays near where it starts, which the search for an outline (:func:`refine_sphere`
-    from guesses 10-40% larger, :func:`_grow_once`) relies on, and on the harder probe
-    set the chrome outline's centre was 0.160 px from the truth at the median, 0.136
-    with ``peak`` in its last fit (docs/probe.md, twentieth round)."""
+    With ``peak`` (an outline's last fit, :func:`outer_rim_fit`) the chosen edge is placed
+    at its own gradient's peak (:func:`_climb` from the choice, which the prior pulls
+    toward the guess) in a cubic spline's samples (:func:`_spline_samples`); a line whose
+    peak lies at the band's end is left out. Without, its place is read where the weighted
+    choice fell, up to half a step from it toward the guess, in a linear interpolation,
+    whose gradient is constant between pixel centres (55% of the points lay on the
+    lattice's half steps). That is imprecise, but an edge whose gradient still rises at
+    the band's end (an outline beyond it) pulls the fit there step by step, which the
+    search for an outline relies on: started away from the outline, fits with edges at
+    their peaks settled on reflections inside it (docs/probe.md, twentieth round)."""
     theta = np.linspace(-np.pi, np.pi, angles, endpoint=False)
     cx, cy, r_theta = _polar_outline(camera, guess, theta)
     step = 0.25
@@ -276,16 +277,13 @@ def edge_points(smoothed: np.ndarray, camera: Camera, guess: Sphere, band_px: fl
     last = len(offsets) - 1
     ok = (idx > 0) & (idx < last) & inside[rows, idx]
     strength = grad[rows, idx]
-    fine = grad
-    if peak:   # where the chosen edge lies: its own gradient's peak, in a cubic spline's samples
+    radius = s[rows, idx] + _parabola_peak(grad, idx) * step
+    if peak:   # the chosen edge at its own gradient's peak, in a cubic spline's samples
         fine = np.linalg.norm(np.gradient(_spline_samples(smoothed, xs, ys), step, axis=1), axis=-1)
         fine[~inside] = 0.0
         idx = _climb(fine, idx)
         ok &= (idx > 0) & (idx < last) & inside[rows, idx]
-    g0, g1, g2 = fine[rows, np.clip(idx - 1, 0, None)], fine[rows, idx], fine[rows, np.clip(idx + 1, None, last)]
-    denom = g0 - 2 * g1 + g2
-    frac = np.where(np.abs(denom) > 1e-12, 0.5 * (g0 - g2) / np.where(denom == 0, 1, denom), 0.0)
-    radius = s[rows, idx] + np.clip(frac, -0.5, 0.5) * step
+        radius = s[rows, idx] + _parabola_peak(fine, idx) * step
     if ok.any():
         ok &= strength >= EDGE_MIN_FRACTION * np.median(strength[ok])
     x = cx + radius * np.cos(theta)
@@ -307,11 +305,18 @@ def _spline_samples(image: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.nda
                      .reshape(xs.shape) for c in range(image.shape[2])], -1)
 
 
+def _parabola_peak(grad: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """Where the parabola through each row's samples ``idx - 1, idx, idx + 1`` of ``grad``
+    (rows, samples) peaks, in steps from ``idx``, within half a step."""
+    rows, last = np.arange(grad.shape[0]), grad.shape[1] - 1
+    g0, g1, g2 = grad[rows, np.maximum(idx - 1, 0)], grad[rows, idx], grad[rows, np.minimum(idx + 1, last)]
+    denom = g0 - 2 * g1 + g2
+    frac = np.where(np.abs(denom) > 1e-12, 0.5 * (g0 - g2) / np.where(denom == 0, 1, denom), 0.0)
+    return np.clip(frac, -0.5, 0.5)
+
+
 def _climb(grad: np.ndarray, idx: np.ndarray) -> np.ndarray:
-    """From each row's sample ``idx`` up to the nearest local maximum of ``grad`` (rows,
-    samples): the prior chooses which edge, the gradient alone where it lies (a peak
-    read from the weighted choice's neighbours was cut at half a step toward the guess,
-    so a fit stayed near where it started)."""
+    """From each row's sample ``idx`` up ``grad`` (rows, samples) to the nearest local maximum."""
     rows = np.arange(grad.shape[0])
     last = grad.shape[1] - 1
     for _ in range(last):
@@ -836,26 +841,30 @@ def outer_rim_fit(smoothed: np.ndarray, camera: Camera, sphere: Sphere) -> Spher
     the fit repeated from its own outline until it settles (moves less than
     :data:`RIM_FIT_SETTLED_PX`; at most :data:`RIM_FIT_ROUNDS` passes): each pass searches
     the edges around the outline the last one found, and one pass started from an outline
-    that inner edges pulled in and up ends part of the way. Returns ``sphere`` itself when
+    that inner edges pulled in and up ends part of the way. Settled, it is repeated with
+    each edge at its own gradient's peak (:func:`edge_points` ``peak``): on the harder
+    probe set's Cycles renders the outline's centre was 0.16 px from the truth at the
+    median without that last step. Returns ``sphere`` itself when
     the first pass finds no fit, or the outline would end more than 15% of the radius from
     it (a different circle)."""
     cx0, cy0, r0 = outline_circle(camera, sphere)
     fitted = sphere
-    for _ in range(RIM_FIT_ROUNDS):
-        new = _outer_rim_pass(smoothed, camera, fitted)
-        if new is fitted:
-            break
-        a, b = outline_circle(camera, fitted), outline_circle(camera, new)
-        fitted = new
-        if max(math.hypot(b[0] - a[0], b[1] - a[1]), abs(b[2] - a[2])) < RIM_FIT_SETTLED_PX:
-            break
+    for peak in (False, True):
+        for _ in range(RIM_FIT_ROUNDS):
+            new = _outer_rim_pass(smoothed, camera, fitted, peak)
+            if new is fitted:
+                break
+            a, b = outline_circle(camera, fitted), outline_circle(camera, new)
+            fitted = new
+            if max(math.hypot(b[0] - a[0], b[1] - a[1]), abs(b[2] - a[2])) < RIM_FIT_SETTLED_PX:
+                break
     cx, cy, r = outline_circle(camera, fitted)
     if math.hypot(cx - cx0, cy - cy0) > 0.15 * r0 or abs(r - r0) > 0.15 * r0:
         return sphere
     return fitted
 
 
-def _outer_rim_pass(smoothed: np.ndarray, camera: Camera, sphere: Sphere) -> Sphere:
+def _outer_rim_pass(smoothed: np.ndarray, camera: Camera, sphere: Sphere, peak: bool = False) -> Sphere:
     """One pass of :func:`outer_rim_fit`. Where a chrome sphere's rim mirrors what lies
     right beside it (the floor it stands on and its own contact shadow, below it) the
     rim shows no edge, and the strongest edge near it is a reflection inside (the
@@ -869,7 +878,7 @@ def _outer_rim_pass(smoothed: np.ndarray, camera: Camera, sphere: Sphere) -> Sph
     cx0, cy0, r0 = outline_circle(camera, sphere)
     fitted = sphere
     for band in (2.0, 1.5):
-        x, y, _ = edge_points(smoothed, camera, fitted, band, peak=True)
+        x, y, _ = edge_points(smoothed, camera, fitted, band, peak=peak)
         if x.size < 0.3 * EDGE_ANGLES:
             return sphere
         keep = np.ones(x.size, bool)
