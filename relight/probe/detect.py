@@ -843,8 +843,8 @@ def outer_rim_fit(smoothed: np.ndarray, camera: Camera, sphere: Sphere) -> Spher
     the edges around the outline the last one found, and one pass started from an outline
     that inner edges pulled in and up ends part of the way. Settled, it is repeated with
     each edge at its own gradient's peak (:func:`edge_points` ``peak``): on the harder
-    probe set's Cycles renders the outline's centre was 0.16 px from the truth at the
-    median without that last step. Returns ``sphere`` itself when
+    probe set's Cycles renders the outline's centre is 0.137 px from the truth at the
+    median, 0.159 without that last step (docs/probe.md, twentieth round). Returns ``sphere`` itself when
     the first pass finds no fit, or the outline would end more than 15% of the radius from
     it (a different circle)."""
     cx0, cy0, r0 = outline_circle(camera, sphere)
