@@ -844,9 +844,9 @@ def outer_rim_fit(smoothed: np.ndarray, camera: Camera, sphere: Sphere) -> Spher
     that inner edges pulled in and up ends part of the way. Settled, it is repeated with
     each edge at its own gradient's peak (:func:`edge_points` ``peak``): on the harder
     probe set's Cycles renders the outline's centre is 0.137 px from the truth at the
-    median, 0.159 without that last step (docs/probe.md, twentieth round). Returns ``sphere`` itself when
-    the first pass finds no fit, or the outline would end more than 15% of the radius from
-    it (a different circle)."""
+    median, 0.159 without that last step (docs/probe.md, twentieth round). Returns
+    ``sphere`` itself when neither first pass finds a fit, or the outline would end more
+    than 15% of the radius from it (a different circle)."""
     cx0, cy0, r0 = outline_circle(camera, sphere)
     fitted = sphere
     for peak in (False, True):
