@@ -123,12 +123,48 @@ def refilter_set(folder: str, out: str, blur_px: float | None = None) -> None:
     print(f"wrote the {how} copy of {folder} to {out}")
 
 
+SET_PROFILE = "set_profile.json"   # how a set's scenes are drawn and rendered
+
+
+def set_profile(folder: str, profile: dict) -> None:
+    """Record ``profile`` (the options a set is drawn and rendered with) in ``folder``, or
+    check it against the one recorded: a set is completed only with the options it was
+    begun with (a set begun before profiles were recorded has the default one)."""
+    from relight.errors import DatasetError
+    from relight.fileio import atomic_write
+    path = os.path.join(folder, SET_PROFILE)
+    if os.path.exists(path):
+        try:
+            with open(path) as f:
+                recorded = json.load(f)
+        except (OSError, ValueError) as e:
+            raise DatasetError(f"{path}: not a set profile ({e})") from None
+    elif glob.glob(os.path.join(folder, "probe[0-9]*.json")):
+        recorded = DEFAULT_PROFILE
+    else:
+        os.makedirs(folder, exist_ok=True)
+        atomic_write(path, lambda tmp: open(tmp, "w").write(json.dumps(profile, indent=1)))
+        return
+    if recorded != profile:
+        diff = ", ".join(f"{k} {recorded.get(k)} (asked {profile.get(k)})" for k in sorted(set(recorded) | set(profile))
+                         if recorded.get(k) != profile.get(k))
+        raise DatasetError(f"{folder} was made with other options: {diff}; complete it with those or use a new folder")
+
+
+DEFAULT_PROFILE = {"res": None, "fov_deg": None, "chrome_radius_px": None, "cycles_filter": "box"}
+
+
 def make_set(folder: str, count: int, spp: int, first: int = 0, cycles: bool = True,
-             pixel_filter: str = "box") -> None:
+             pixel_filter: str = "box", res: int | None = None, fov_deg: float | None = None,
+             chrome_radius_px: tuple[float, float] | None = None) -> None:
     """Write ``count`` probe scenes (seeds ``first`` on) and their Mitsuba and (unless not
     ``cycles``) Cycles renders into ``folder`` (existing files are kept: the set grows or
     resumes); Cycles with ``pixel_filter`` (``relight.verify.probe_scenes.CYCLES_PIXEL_FILTERS``:
-    a box one pixel wide, Mitsuba's, or Blender's default Blackman-Harris 1.5 px)."""
+    a box one pixel wide, Mitsuba's, or Blender's default Blackman-Harris 1.5 px). ``res``,
+    ``fov_deg`` and ``chrome_radius_px`` fix what ``sample_room_scene`` otherwise draws
+    (e.g. a set like the team's Cycles renders: 256 px, FOV 30, radius 15-20 px); the
+    options are recorded in the set (:data:`SET_PROFILE`) and a set is only completed
+    with the same ones."""
     from tqdm import tqdm
 
     from relight import backend
@@ -137,7 +173,9 @@ def make_set(folder: str, count: int, spp: int, first: int = 0, cycles: bool = T
     from relight.imageio import write_exr, write_png
     from relight.probe.detect import camera_exposure
     from relight.verify import probe_scenes as ps
-    os.makedirs(folder, exist_ok=True)
+    set_profile(folder, {"res": res, "fov_deg": fov_deg,
+                         "chrome_radius_px": None if chrome_radius_px is None else list(chrome_radius_px),
+                         "cycles_filter": pixel_filter})
     backend.init()
     paths = []
     for i in tqdm(range(first, first + count), desc="Mitsuba renders", unit="scene"):
@@ -145,7 +183,7 @@ def make_set(folder: str, count: int, spp: int, first: int = 0, cycles: bool = T
         paths.append(path)
         if os.path.exists(path) and os.path.exists(path[:-5] + ".mitsuba.png"):
             continue
-        d = ps.sample_room_scene(i)
+        d = ps.sample_room_scene(i, res, fov_deg, chrome_radius_px)
         image = ps.render_room_mitsuba(d, spp=spp)
         # exposure as a camera's: the brightest PNG_CLIP_SHARE of the pixels clip
         d["png_exposure"] = camera_exposure(image, PNG_CLIP_SHARE)
@@ -411,7 +449,7 @@ def report(rows: list, detect: list, worst: int = 0) -> None:
 
 def main() -> None:
     from relight.commands import argtypes as at
-    from relight.verify.probe_scenes import CYCLES_PIXEL_FILTERS
+    from relight.verify.probe_scenes import CYCLES_PIXEL_FILTERS, ROOM_RES_CHOICES as ROOM_RES
     ap = at.OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--set", default=os.path.expanduser(os.path.join("~", "relight-data", "issue-29", "set")),
                     help="folder of the harder probe set")
@@ -425,6 +463,14 @@ def main() -> None:
     ap.add_argument("--cycles-filter", choices=sorted(CYCLES_PIXEL_FILTERS), default="box",
                     help="with --make: Cycles' pixel filter (box 1 px as Mitsuba's, the set's; blackman-harris: "
                          "Blender's default, 1.5 px)")
+    ap.add_argument("--res", type=at.int_in(64, 1024, "an image size in pixels"), default=None,
+                    help="with --make: every scene's image size (square; default: drawn among 128-512)")
+    ap.add_argument("--fov", type=at.float_in(20.0, 60.0, "a field of view in degrees"), default=None,
+                    help="with --make: every scene's field of view (default: drawn in 20-60 deg)")
+    ap.add_argument("--chrome-radius", type=at.int_range_in(5, 150, "a chrome radius in pixels"), default=None,
+                    metavar="LO-HI", help="with --make: the chrome sphere's radius drawn in LO-HI px (default "
+                                          "10-40, at most 15%% of the image side); the team's Cycles renders: "
+                                          "--res 256 --fov 30 --chrome-radius 15-20 --cycles-filter blackman-harris")
     ap.add_argument("--renderers", default="cycles,mitsuba")
     ap.add_argument("--kinds", default="png,exr", help="which files of the set: png (8-bit) and/or exr")
     ap.add_argument("--no-psm", action="store_true", help="skip shared/data/psm_spheres")
@@ -445,13 +491,19 @@ def main() -> None:
     args = ap.parse_args()
     if args.refilter_blur is not None and not args.refilter:
         ap.error("--refilter-blur needs --refilter DIR")
-    if args.cycles_filter != "box" and not args.make:
-        ap.error("--cycles-filter needs --make N (it sets how the set's Cycles renders are made)")
+    for flag, value in (("--cycles-filter", args.cycles_filter != "box"), ("--res", args.res), ("--fov", args.fov),
+                        ("--chrome-radius", args.chrome_radius)):
+        if value and not args.make:
+            ap.error(f"{flag} needs --make N (it sets how the set's scenes are made)")
+    if args.chrome_radius and args.chrome_radius[1] > 0.15 * (args.res or min(ROOM_RES)):
+        ap.error(f"--chrome-radius {args.chrome_radius[1]} px is more than 15% of the image side "
+                 f"({args.res or min(ROOM_RES)} px): the spheres would not fit beside each other")
     if args.refilter:
         refilter_set(args.set, args.refilter, args.refilter_blur)
         return
     if args.make:
-        make_set(args.set, args.make, args.spp, args.first, cycles=not args.no_cycles, pixel_filter=args.cycles_filter)
+        make_set(args.set, args.make, args.spp, args.first, cycles=not args.no_cycles, pixel_filter=args.cycles_filter,
+                 res=args.res, fov_deg=args.fov, chrome_radius_px=args.chrome_radius)
     if args.floor:
         png_floor(args.set)
         return

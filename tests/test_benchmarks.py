@@ -4,6 +4,7 @@ its arguments are valid (each benchmark's ``--check-args``), a bad setting is on
 exit 2 like the command line, and (``-m slow``) each command runs to the end."""
 from __future__ import annotations
 
+import json
 import os
 import re
 import shlex
@@ -124,6 +125,12 @@ def test_cycles_batch_setting_is_one_line(argv, option, capfd, monkeypatch):
     (["--refilter", "COPY"], "--refilter"),                         # a set with no scenes
     (["--cycles-filter", "blackman-harris"], "--cycles-filter"),    # the filter belongs to --make
     (["--make", "2", "--cycles-filter", "gaussian"], "--cycles-filter"),
+    (["--res", "256"], "--res"),                                    # how scenes are drawn belongs to --make
+    (["--fov", "30"], "--fov"),
+    (["--chrome-radius", "15-20"], "--chrome-radius"),
+    (["--make", "2", "--fov", "90"], "--fov"),                      # outside the set's 20-60 deg
+    (["--make", "2", "--chrome-radius", "20-15"], "--chrome-radius"),
+    (["--make", "2", "--res", "128", "--chrome-radius", "15-20"], "--chrome-radius"),   # > 15% of 128 px
 ])
 def test_probe_refilter_setting_is_one_line(argv, option, capfd, monkeypatch, tmp_path):
     folder, copy = tmp_path / "set", tmp_path / "copy"
@@ -133,6 +140,29 @@ def test_probe_refilter_setting_is_one_line(argv, option, capfd, monkeypatch, tm
     lines = err.strip().splitlines()
     assert code == 2 and len(lines) == 1 and option in lines[0] and "error:" in lines[0], err
     assert not copy.exists() and os.listdir(folder) == []
+
+
+@pytest.mark.parametrize("recorded, argv", [
+    ({"res": 256, "fov_deg": 30.0, "chrome_radius_px": [15, 20], "cycles_filter": "blackman-harris"},
+     ["--res", "256", "--fov", "30", "--chrome-radius", "15-20"]),          # begun with Blender's filter
+    ({"res": 256, "fov_deg": 30.0, "chrome_radius_px": [15, 20], "cycles_filter": "box"},
+     ["--res", "256", "--fov", "30"]),                                      # begun with a radius range
+    (None, ["--fov", "30"]),                                               # begun before profiles: the default one
+])
+def test_a_probe_set_is_completed_only_with_the_options_it_was_begun_with(recorded, argv, capfd, monkeypatch,
+                                                                           tmp_path):
+    folder = tmp_path / "set"
+    folder.mkdir()
+    if recorded is None:
+        (folder / "probe000.json").write_text("{}")
+    else:
+        (folder / "set_profile.json").write_text(json.dumps(recorded))
+    before = {p.name: p.read_bytes() for p in folder.iterdir()}
+    code, _, err = _run_here(["benchmarks/bench_probe.py", "--set", str(folder), "--make", "1", "--no-psm", *argv],
+                             capfd, monkeypatch)
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and "other options" in lines[0], err
+    assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
 
 
 @pytest.mark.slow

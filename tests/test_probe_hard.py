@@ -577,6 +577,25 @@ def test_probe_scene_render_puts_the_highlight_where_the_truth_says():
     assert t["chrome_circle"] == pytest.approx(list(detect.outline_circle(cam, sphere)), abs=1e-6)
 
 
+def test_a_room_scene_can_be_drawn_as_the_teams_cycles_renders():
+    # 256 px, FOV 30, chrome radius 15-20 px: every draw has them (the outline circle of
+    # an off-axis sphere is up to 1/cos(21 deg) = 7% wider than its on-axis radius), and
+    # the radius still varies within the range; without them a seed's scene is unchanged
+    from relight.verify import probe_scenes as ps
+    radii, fovs = [], []
+    for seed in range(6):
+        t = ps.sample_room_scene(seed, 256, 30.0, (15.0, 20.0))["truth"]
+        assert t["res"] == 256 and t["fov_deg"] == 30.0
+        assert 15.0 <= t["chrome_circle"][2] <= 20.0 * 1.07
+        radii.append(t["chrome_circle"][2])
+        plain = ps.sample_room_scene(seed)
+        assert plain == ps.sample_room_scene(seed, None, None, None)
+        fovs.append(plain["truth"]["fov_deg"])
+    assert max(radii) - min(radii) > 1.0 and max(fovs) - min(fovs) > 5.0
+    with pytest.raises(ValueError):
+        ps.sample_room_scene(0, 256, 30.0, (20.0, 15.0))
+
+
 # ------------------------------------------------------------------ small spheres found
 def test_chrome_outline_grows_past_a_reflection_circle_inside_it():
     # a mirror sphere on a background about as bright as its rim (a faint outline) shows a

@@ -364,13 +364,21 @@ def specular_point(centre, radius: float, eye, light) -> np.ndarray:
     return c + radius * n
 
 
-def sample_room_scene(seed: int, res: int | None = None) -> dict:
+def sample_room_scene(seed: int, res: int | None = None, fov_deg: float | None = None,
+                      chrome_radius_px: tuple[float, float] | None = None) -> dict:
     """A random probe scene of the harder set (a ``relight.probe-scene/v1`` dict, with
-    its truth): image ``res`` (square; random among :data:`ROOM_RES_CHOICES` if None).
-    A draw whose spheres or light cannot be placed is drawn again (another stream)."""
+    its truth): image ``res`` (square; random among :data:`ROOM_RES_CHOICES` if None),
+    field of view ``fov_deg`` (uniform in :data:`ROOM_FOV_DEG` if None), chrome sphere
+    radius uniform in ``chrome_radius_px`` (``(lo, hi)`` pixels; :data:`ROOM_RADIUS_PX`,
+    at most 15% of the image side, if None). With all three None a seed gives the scene
+    it always gave. A draw whose spheres or light cannot be placed is drawn again
+    (another stream)."""
+    if chrome_radius_px is not None and not 0 < chrome_radius_px[0] <= chrome_radius_px[1]:
+        raise ValueError(f"chrome_radius_px must be (lo, hi) with 0 < lo <= hi, got {chrome_radius_px}")
     for attempt in range(50):
         try:
-            return _sample_room_scene(np.random.default_rng([10_000 + seed, attempt]), seed, res)
+            return _sample_room_scene(np.random.default_rng([10_000 + seed, attempt]), seed, res, fov_deg,
+                                      chrome_radius_px)
         except _Unplaceable:
             continue
     raise RuntimeError(f"probe scene {seed}: could not place the spheres")
@@ -380,15 +388,17 @@ class _Unplaceable(Exception):
     pass
 
 
-def _sample_room_scene(rng, seed: int, res: int | None) -> dict:
+def _sample_room_scene(rng, seed: int, res: int | None, fov_deg: float | None = None,
+                       chrome_radius_px: tuple[float, float] | None = None) -> dict:
     from relight import frames
     from relight.scene import albedo, shapes, textures
     from relight.scene.spec import CameraSpec, LightSpec, ObjectSpec, RenderSpec, RoomSpec, SceneSpec
     res = int(res or rng.choice(ROOM_RES_CHOICES))
-    fov = float(np.round(rng.uniform(*ROOM_FOV_DEG), 2))
+    fov = float(np.round(rng.uniform(*ROOM_FOV_DEG), 2) if fov_deg is None else fov_deg)
     cam = CameraSpec(tilt_deg=float(np.round(rng.uniform(10.0, 35.0), 2)),
                      r_m=float(np.round(rng.uniform(3.0, 7.0), 3)), pan_deg=0.0, fov_deg=fov)
-    r_px = float(rng.uniform(ROOM_RADIUS_PX[0], min(ROOM_RADIUS_PX[1], 0.15 * res)))
+    lo, hi = chrome_radius_px or (ROOM_RADIUS_PX[0], min(ROOM_RADIUS_PX[1], 0.15 * res))
+    r_px = float(rng.uniform(lo, hi))
     taken: list = []
     chrome = _place_ball(rng, cam, res, r_px, taken)
     gray = _place_ball(rng, cam, res, r_px * rng.uniform(0.8, 1.25), taken)
