@@ -833,6 +833,26 @@ def test_the_outer_rim_fit_ends_where_it_settles_wherever_it_starts(half_angle_d
     assert math.dist(a[:2], b[:2]) < 0.02 and abs(a[2] - b[2]) < 0.02
 
 
+@pytest.mark.parametrize("half_angle_deg, depth_px", [(45.0, 1.5), (60.0, 2.0)])
+@pytest.mark.parametrize("off", [(0.3, -0.3, 0.2), (-0.35, 0.2, -0.25)])
+def test_a_given_chrome_circle_is_refined_as_a_found_outline_is(half_angle_deg, depth_px, off):
+    # a circle given 0.4-0.5 px off (tolerance 0.5 px) on a mirror whose lower rim shows no
+    # edge: refined as the detection fits a chrome outline (outer_rim_fit) it comes back
+    # within 0.15 px of the truth; the symmetric robust fit it had been refined by is
+    # pulled in and up by the inner edge below, more than 0.2 px off
+    n = 64
+    image, circle = _rim_hidden_below(half_angle_deg, depth_px, n)
+    cam = pg.Camera.from_fov(n, n, 30.0)
+    true = detect.outline_circle(cam, pg.sphere_from_circle(cam, *circle))
+    given = (true[0] + off[0], true[1] + off[1], true[2] + off[2])
+    refined, report = detect.constrained_refinement(image, cam, given, TOLERANCE_PX, rim_shift_px=0.0, chrome=True)
+    out = detect.outline_circle(cam, refined)
+    assert report["accepted"]
+    assert math.dist(out[:2], true[:2]) < 0.15 and abs(out[2] - true[2]) < 0.15
+    symmetric, _ = detect.refine_sphere(image, cam, pg.sphere_from_circle(cam, *given), detect._edge_image(image))
+    assert math.dist(detect.outline_circle(cam, symmetric)[:2], true[:2]) > 0.2
+
+
 @pytest.mark.parametrize("cx, cy, r", [(40.37, 33.81, 12.3), (51.2, 40.55, 17.71), (45.5, 38.5, 9.9)])
 def test_a_final_outlines_edge_points_lie_on_the_edge_not_on_the_pixel_lattice(cx, cy, r):
     # a disc whose outline is known to the sub-pixel (box-filtered, blurred by half a

@@ -95,7 +95,8 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
     A chrome sphere's rim edges lie inside its outline (it mirrors what lies behind it):
     a detected chrome outline is the circle fitted to them moved out by
     :func:`relight.probe.detect.chrome_rim_shift_px`, and a given circle's refinement
-    fits the outline those edges imply (``rim_shift_px`` in the report).
+    fits the outline those edges imply (``rim_shift_px`` in the report), by the fit a
+    detected chrome outline ends with (:func:`relight.probe.detect.outer_rim_fit`).
     A detected chrome sphere's ``refinement`` holds the detection's ``ambiguity`` (0-1) and
     the ``rival`` sphere when another circle scores within :data:`relight.probe.detect.DETECTION_MARGIN`
     of the one chosen (:func:`relight.probe.detect.rival_sphere`), and (``use_locator``) the
@@ -110,7 +111,7 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
         if not refine or tolerance_px <= 0:
             return guess, None, "circle", {"tolerance_px": 0.0, "accepted": False}
         rim = detect.chrome_rim_shift_px(image) if kind == "chrome" else 0.0
-        sphere, report = detect.constrained_refinement(image, camera, circle, tolerance_px, rim)
+        sphere, report = detect.constrained_refinement(image, camera, circle, tolerance_px, rim, kind == "chrome")
         if rim:
             report["rim_shift_px"] = round(rim, 4)
         how = "circle refined on edges" if report["accepted"] else "circle (as given)"
