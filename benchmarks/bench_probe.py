@@ -32,6 +32,8 @@ Errors are in degrees; a failure counts as 180.
     python benchmarks/bench_probe.py --set ~/relight-data/issue-29/set --make 40   # once (~15 min)
     python benchmarks/bench_probe.py --set ~/relight-data/issue-29/set [--qa DIR]
     python benchmarks/bench_probe.py --set ~/relight-data/issue-29/heldout --make 60 --first 1000   # never tuned on
+    python benchmarks/bench_probe.py --set ~/relight-data/issue-29/team21 --make 60 --first 21000 \
+        --res 256 --fov 30 --chrome-radius 15-20 --cycles-filter blackman-harris   # drawn as the team's renders
     python benchmarks/bench_probe.py --set ~/relight-data/issue-29/set --floor   # what 8-bit leaves
     python benchmarks/bench_probe.py --set ~/relight-data/issue-29/set --refilter DIR   # then --set DIR:
     #   the Cycles renders as Blender's default pixel filter (Blackman-Harris, 1.5 px) would give them
