@@ -126,6 +126,7 @@ def refilter_set(folder: str, out: str, blur_px: float | None = None) -> None:
 
 
 SET_PROFILE = "set_profile.json"   # how a set's scenes are drawn and rendered
+DEFAULT_PROFILE = {"res": None, "fov_deg": None, "chrome_radius_px": None, "cycles_filter": "box"}
 
 
 def set_profile(folder: str, profile: dict) -> None:
@@ -152,8 +153,6 @@ def set_profile(folder: str, profile: dict) -> None:
                          if recorded.get(k) != profile.get(k))
         raise DatasetError(f"{folder} was made with other options: {diff}; complete it with those or use a new folder")
 
-
-DEFAULT_PROFILE = {"res": None, "fov_deg": None, "chrome_radius_px": None, "cycles_filter": "box"}
 
 
 def make_set(folder: str, count: int, spp: int, first: int = 0, cycles: bool = True,
@@ -451,7 +450,7 @@ def report(rows: list, detect: list, worst: int = 0) -> None:
 
 def main() -> None:
     from relight.commands import argtypes as at
-    from relight.verify.probe_scenes import CYCLES_PIXEL_FILTERS, ROOM_RES_CHOICES as ROOM_RES
+    from relight.verify import probe_scenes as ps
     ap = at.OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--set", default=os.path.expanduser(os.path.join("~", "relight-data", "issue-29", "set")),
                     help="folder of the harder probe set")
@@ -462,17 +461,19 @@ def main() -> None:
     ap.add_argument("--no-cycles", action="store_true",
                     help="with --make: Mitsuba renders only (fast; e.g. training scenes for a learned detector)")
     ap.add_argument("--spp", type=at.spp, default=64, help="samples per pixel when making the set")
-    ap.add_argument("--cycles-filter", choices=sorted(CYCLES_PIXEL_FILTERS), default="box",
+    ap.add_argument("--cycles-filter", choices=sorted(ps.CYCLES_PIXEL_FILTERS), default="box",
                     help="with --make: Cycles' pixel filter (box 1 px as Mitsuba's, the set's; blackman-harris: "
                          "Blender's default, 1.5 px)")
     ap.add_argument("--res", type=at.int_in(64, 1024, "an image size in pixels"), default=None,
                     help="with --make: every scene's image size (square; default: drawn among 128-512)")
-    ap.add_argument("--fov", type=at.float_in(20.0, 60.0, "a field of view in degrees"), default=None,
-                    help="with --make: every scene's field of view (default: drawn in 20-60 deg)")
+    fov_lo, fov_hi = ps.ROOM_FOV_DEG
+    ap.add_argument("--fov", type=at.float_in(fov_lo, fov_hi, "a field of view in degrees"), default=None,
+                    help=f"with --make: every scene's field of view (default: drawn in {fov_lo:g}-{fov_hi:g} deg)")
     ap.add_argument("--chrome-radius", type=at.int_range_in(5, 150, "a chrome radius in pixels"), default=None,
                     metavar="LO-HI", help="with --make: the chrome sphere's radius drawn in LO-HI px (default "
-                                          "10-40, at most 15%% of the image side); the team's Cycles renders: "
-                                          "--res 256 --fov 30 --chrome-radius 15-20 --cycles-filter blackman-harris")
+                                          f"{ps.ROOM_RADIUS_PX[0]:g}-{ps.ROOM_RADIUS_PX[1]:g}, at most "
+                                          f"{100 * ps.ROOM_MAX_RADIUS_SHARE:g}%% of the image side); the team's Cycles "
+                                          "renders: --res 256 --fov 30 --chrome-radius 15-20 --cycles-filter blackman-harris")
     ap.add_argument("--renderers", default="cycles,mitsuba")
     ap.add_argument("--kinds", default="png,exr", help="which files of the set: png (8-bit) and/or exr")
     ap.add_argument("--no-psm", action="store_true", help="skip shared/data/psm_spheres")
@@ -497,9 +498,10 @@ def main() -> None:
                         ("--chrome-radius", args.chrome_radius)):
         if value and not args.make:
             ap.error(f"{flag} needs --make N (it sets how the set's scenes are made)")
-    if args.chrome_radius and args.chrome_radius[1] > 0.15 * (args.res or min(ROOM_RES)):
-        ap.error(f"--chrome-radius {args.chrome_radius[1]} px is more than 15% of the image side "
-                 f"({args.res or min(ROOM_RES)} px): the spheres would not fit beside each other")
+    side = args.res or min(ps.ROOM_RES_CHOICES)
+    if args.chrome_radius and args.chrome_radius[1] > ps.ROOM_MAX_RADIUS_SHARE * side:
+        ap.error(f"--chrome-radius {args.chrome_radius[1]} px is more than {100 * ps.ROOM_MAX_RADIUS_SHARE:g}% of the "
+                 f"image side ({side} px): the spheres would not fit beside each other")
     if args.refilter:
         refilter_set(args.set, args.refilter, args.refilter_blur)
         return

@@ -594,6 +594,8 @@ def test_a_room_scene_can_be_drawn_as_the_teams_cycles_renders():
     assert max(radii) - min(radii) > 1.0 and max(fovs) - min(fovs) > 5.0
     with pytest.raises(ValueError):
         ps.sample_room_scene(0, 256, 30.0, (20.0, 15.0))
+    with pytest.raises(ValueError):    # more than ROOM_MAX_RADIUS_SHARE of a 128 px side
+        ps.sample_room_scene(0, 128, 30.0, (15.0, 20.0))
 
 
 # ------------------------------------------------------------------ small spheres found

@@ -398,7 +398,7 @@ def constrained_refinement(image: np.ndarray, camera: Camera, circle, tolerance_
     if chrome:
         fitted = outer_rim_fit(smoothed, camera, guess)
         if fitted is guess:
-            report["reason"] = "too little of the outline is visible as an edge"
+            report["reason"] = "no chrome outline fits the edges near the circle"
             return guess, report
     else:
         try:

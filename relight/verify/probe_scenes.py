@@ -267,7 +267,8 @@ def render_probe_scene(scene: ProbeScene, spp: int = 64, seed: int = 0) -> np.nd
 
 PROBE_SCENE_FORMAT = "relight.probe-scene/v1"
 ROOM_RES_CHOICES = (128, 256, 256, 384, 512)
-ROOM_RADIUS_PX = (10.0, 40.0)        # chrome sphere radius in pixels (at most 15% of the image side)
+ROOM_RADIUS_PX = (10.0, 40.0)        # chrome sphere radius in pixels (at most ROOM_MAX_RADIUS_SHARE of the image side)
+ROOM_MAX_RADIUS_SHARE = 0.15         # a larger chrome sphere leaves no room beside it for the gray one and the ball
 ROOM_FOV_DEG = (20.0, 60.0)
 ROOM_LIGHT_ANGULAR_RADIUS_DEG = (2.0, 4.0)   # the light as seen from the chrome sphere (a 3-25 cm lamp)
 ROOM_IRRADIANCE = (3.0, 6.0)         # W/m^2 from the light at the chrome sphere
@@ -369,12 +370,16 @@ def sample_room_scene(seed: int, res: int | None = None, fov_deg: float | None =
     """A random probe scene of the harder set (a ``relight.probe-scene/v1`` dict, with
     its truth): image ``res`` (square; random among :data:`ROOM_RES_CHOICES` if None),
     field of view ``fov_deg`` (uniform in :data:`ROOM_FOV_DEG` if None), chrome sphere
-    radius uniform in ``chrome_radius_px`` (``(lo, hi)`` pixels; :data:`ROOM_RADIUS_PX`,
-    at most 15% of the image side, if None). With all three None a seed gives the scene
-    it always gave. A draw whose spheres or light cannot be placed is drawn again
-    (another stream)."""
-    if chrome_radius_px is not None and not 0 < chrome_radius_px[0] <= chrome_radius_px[1]:
-        raise ValueError(f"chrome_radius_px must be (lo, hi) with 0 < lo <= hi, got {chrome_radius_px}")
+    radius uniform in ``chrome_radius_px`` (``(lo, hi)`` pixels, ``hi`` at most
+    :data:`ROOM_MAX_RADIUS_SHARE` of the image side, of the smallest drawn side if ``res``
+    is None; :data:`ROOM_RADIUS_PX` within that if None). With all three None a seed gives
+    the scene it always gave. A draw whose spheres or light cannot be placed is drawn
+    again (another stream)."""
+    if chrome_radius_px is not None:
+        side = res or min(ROOM_RES_CHOICES)
+        if not 0 < chrome_radius_px[0] <= chrome_radius_px[1] <= ROOM_MAX_RADIUS_SHARE * side:
+            raise ValueError(f"chrome_radius_px must be (lo, hi) with 0 < lo <= hi <= {ROOM_MAX_RADIUS_SHARE:g} of "
+                             f"the image side ({side} px), got {tuple(chrome_radius_px)}")
     for attempt in range(50):
         try:
             return _sample_room_scene(np.random.default_rng([10_000 + seed, attempt]), seed, res, fov_deg,
@@ -397,7 +402,7 @@ def _sample_room_scene(rng, seed: int, res: int | None, fov_deg: float | None = 
     fov = float(np.round(rng.uniform(*ROOM_FOV_DEG), 2) if fov_deg is None else fov_deg)
     cam = CameraSpec(tilt_deg=float(np.round(rng.uniform(10.0, 35.0), 2)),
                      r_m=float(np.round(rng.uniform(3.0, 7.0), 3)), pan_deg=0.0, fov_deg=fov)
-    lo, hi = chrome_radius_px or (ROOM_RADIUS_PX[0], min(ROOM_RADIUS_PX[1], 0.15 * res))
+    lo, hi = chrome_radius_px or (ROOM_RADIUS_PX[0], min(ROOM_RADIUS_PX[1], ROOM_MAX_RADIUS_SHARE * res))
     r_px = float(rng.uniform(lo, hi))
     taken: list = []
     chrome = _place_ball(rng, cam, res, r_px, taken)
