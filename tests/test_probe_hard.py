@@ -835,56 +835,6 @@ def test_the_outer_rim_fit_ends_where_it_settles_wherever_it_starts(half_angle_d
     assert math.dist(a[:2], b[:2]) < 0.02 and abs(a[2] - b[2]) < 0.02
 
 
-def _shadow_beside(centre_deg, half_angle_deg, width_px, n=64, cx=31.6, cy=27.3, r=12.4, ss=8):
-    """A dark mirror disc on a brighter floor with a shadow ``width_px`` wide against its rim
-    within ``half_angle_deg`` of ``centre_deg`` (image angles, 90: straight down), which
-    the rim mirrors there (darker still within 2 px inside): the rim's edge is faint, the
-    shadow's outer edge strong and outside it (a sphere's contact and cast shadows)."""
-    ys, xs = (np.mgrid[0:n * ss, 0:n * ss] + 0.5) / ss
-    d = np.hypot(xs - cx, ys - cy)
-    angle = np.degrees(np.arctan2(ys - cy, xs - cx))
-    sector = np.abs((angle - centre_deg + 180.0) % 360.0 - 180.0) < half_angle_deg
-    v = np.where(d < r, 0.15, 0.45)
-    v = np.where(sector & (d >= r) & (d < r + width_px), 0.1, v)
-    v = np.where(sector & (d < r) & (d > r - 2.0), 0.06, v)
-    g = v.reshape(n, ss, n, ss).mean((1, 3))
-    return np.stack([g, 0.9 * g, 0.8 * g], -1), (cx, cy, r)
-
-
-@pytest.mark.parametrize("centre_deg, half_angle_deg, width_px", [(90.0, 45.0, 1.2), (110.0, 40.0, 1.5), (80.0, 30.0, 2.0)])
-def test_a_shadow_against_the_lower_rim_does_not_draw_the_chrome_outline_out(monkeypatch, centre_deg,
-                                                                            half_angle_deg, width_px):
-    # the outermost edges below are the shadow's: fitted to them (the lowest arc kept) the
-    # outline ends 0.6-1.2 px off and 0.4-0.9 px too large; with the arc left out it stays
-    # within 0.1 px of the truth
-    n = 64
-    image, circle = _shadow_beside(centre_deg, half_angle_deg, width_px, n)
-    cam = pg.Camera.from_fov(n, n, 30.0)
-    true = detect.outline_circle(cam, pg.sphere_from_circle(cam, *circle))
-    smoothed = detect._edge_image(image)
-
-    def fitted():
-        return detect.outline_circle(cam, detect.outer_rim_fit(smoothed, cam, pg.sphere_from_circle(cam, *circle)))
-    found = fitted()
-    assert math.dist(found[:2], true[:2]) < 0.1 and abs(found[2] - true[2]) < 0.1
-    monkeypatch.setattr(detect, "FLOOR_ARC_DEG", 0.0)
-    kept = fitted()
-    assert math.dist(kept[:2], true[:2]) > 0.4 and kept[2] - true[2] > 0.25     # the problem
-
-
-def test_the_floor_arc_is_the_lowest_quarter_of_the_outline_in_the_image():
-    cam = pg.Camera.from_fov(64, 48, 40.0)
-    sphere = pg.sphere_from_circle(cam, 20.3, 30.1, 8.0)
-    cx, cy, r = detect.outline_circle(cam, sphere)
-    deg = np.arange(-179.5, 180.0, 1.0)
-    x, y = cx + r * np.cos(np.radians(deg)), cy + r * np.sin(np.radians(deg))
-    kx, ky = detect._off_the_floor_arc(cam, sphere, x, y)
-    kept = set(zip(np.round(kx, 9), np.round(ky, 9)))
-    gone = [d for d, p in zip(deg, zip(np.round(x, 9), np.round(y, 9))) if p not in kept]
-    assert len(gone) == round(detect.FLOOR_ARC_DEG)                 # one point a degree
-    assert all(abs(d - 90.0) < 0.5 * detect.FLOOR_ARC_DEG for d in gone)   # about straight down (image y down)
-
-
 @pytest.mark.parametrize("half_angle_deg, depth_px", [(45.0, 1.5), (60.0, 2.0)])
 @pytest.mark.parametrize("off", [(0.3, -0.3, 0.2), (-0.35, 0.2, -0.25)])
 def test_a_given_chrome_circle_is_refined_as_a_found_outline_is(half_angle_deg, depth_px, off):

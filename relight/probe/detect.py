@@ -28,7 +28,7 @@ __all__ = [
     "outline_fit_px", "constrained_refinement", "GROW_RADII", "GROW_FINE_RADII", "GROW_MIN_SUPPORT_RATIO", "GROW_ROUNDS",
     "PICK_HIGHLIGHT_WEIGHT", "PICK_RADIUS_WEIGHT", "CHROME_INSIDE_PX", "RIM_FIT_ROUNDS", "RIM_FIT_SETTLED_PX", "outer_rim_fit", "DETECTION_MARGIN",
     "rival_sphere", "share_the_rest", "CHROME_RIM_SHIFT", "PIXEL_BLUR_PX", "edge_blur_px", "chrome_rim_shift_px",
-    "outline_from_rim", "FLOOR_ARC_DEG",
+    "outline_from_rim",
 ]
 
 import math
@@ -73,9 +73,7 @@ CHECK_MOVE = 0.1               # the learned outline check's circle this far fro
 CHROME_INSIDE_PX = 0.5         # a chrome outline's edge points further inside than this are reflections
                                # (about 1.5 robust sigmas of the edge points' scatter on a true rim, 0.3 px)
 RIM_FIT_ROUNDS = 3             # a chrome outline's fit to its outermost edges repeated from its own outline at most this often,
-RIM_FIT_SETTLED_PX = 0.01      # ... until it moves less than this, each time leaving out the outline's lowest arc,
-FLOOR_ARC_DEG = 90.0           # ... this wide about straight down in the image (where a sphere standing on a floor
-                               # meets its contact and cast shadows, whose outer edges lie outside its rim)
+RIM_FIT_SETTLED_PX = 0.01      # ... until it moves less than this
 CHROME_RIM_SHIFT = 0.2         # a mirror sphere's rim edges lie this many blur widths inside its outline
 PIXEL_BLUR_PX = math.sqrt(1.0 / 12.0)   # a pixel's own blur (a box one pixel wide: its standard deviation)
 PICK_HIGHLIGHT_WEIGHT = 0.1    # choosing the chrome sphere: per unit of highlight likelihood (strikes) ...
@@ -894,17 +892,14 @@ def _outer_rim_pass(smoothed: np.ndarray, camera: Camera, sphere: Sphere, peak: 
     first fitted to the edge points on or outside it; then edge points more than
     :data:`CHROME_INSIDE_PX` inside it are left out, those outside by the usual robust
     rule, and the outline refitted until the set of points settles (twice, the second
-    time searching a narrower band around the new outline). The outline's lowest arc
-    (:data:`FLOOR_ARC_DEG`, :func:`_off_the_floor_arc`) is left out. Returns ``sphere``
-    itself when fewer than 30% of the other radial lines would remain, or the outline
-    would move or change its radius by more than 15% of the radius (a different circle)."""
+    time searching a narrower band around the new outline). Returns ``sphere`` itself
+    when fewer than 30% of the radial lines would remain, or the outline would move or
+    change its radius by more than 15% of the radius (a different circle)."""
     cx0, cy0, r0 = outline_circle(camera, sphere)
     fitted = sphere
-    least = 0.3 * EDGE_ANGLES * (1.0 - FLOOR_ARC_DEG / 360.0)
     for band in (2.0, 1.5):
         x, y, _ = edge_points(smoothed, camera, fitted, band, peak=peak)
-        x, y = _off_the_floor_arc(camera, fitted, x, y)
-        if x.size < least:
+        if x.size < 0.3 * EDGE_ANGLES:
             return sphere
         keep = np.ones(x.size, bool)
         dist = _outline_distance(camera, fitted, x, y)
@@ -922,7 +917,7 @@ def _outer_rim_pass(smoothed: np.ndarray, camera: Camera, sphere: Sphere, peak: 
             kept = dist[keep]
             mad = 1.4826 * np.median(np.abs(kept - np.median(kept)))
             new = (dist >= -CHROME_INSIDE_PX) & (dist <= max(REJECT_MIN_PX, REJECT_SIGMAS * mad))
-            if new.sum() < least:
+            if new.sum() < 0.3 * EDGE_ANGLES:
                 return sphere
             if np.array_equal(new, keep):
                 break
@@ -935,21 +930,6 @@ def _outer_rim_pass(smoothed: np.ndarray, camera: Camera, sphere: Sphere, peak: 
     if math.hypot(cx - cx0, cy - cy0) > 0.15 * r0 or abs(r - r0) > 0.15 * r0:
         return sphere
     return fitted
-
-
-def _off_the_floor_arc(camera: Camera, sphere: Sphere, x, y) -> tuple[np.ndarray, np.ndarray]:
-    """Edge points ``(x, y)`` of ``sphere``'s outline but those on its lowest arc, within
-    half of :data:`FLOOR_ARC_DEG` of straight down in the image from the outline's centre.
-    A sphere standing on a floor mirrors the floor and its own contact shadow there, so its
-    rim shows little edge (on the team-like set's true outlines the strongest edge near the
-    rim lies on it on 23% of that arc's radial lines, 69-74% elsewhere), while the contact
-    and cast shadows beside it end in strong edges 1-3 px outside: the outermost edges,
-    which :func:`_outer_rim_pass` fits, drew outlines onto the shadow (docs/probe.md,
-    twenty-second round). The rest of the outline fixes the circle."""
-    cx, cy, _ = outline_circle(camera, sphere)
-    down = np.degrees(np.arctan2(np.asarray(y) - cy, np.asarray(x) - cx)) - 90.0
-    keep = np.abs(down) >= 0.5 * FLOOR_ARC_DEG
-    return np.asarray(x)[keep], np.asarray(y)[keep]
 
 
 def _grow_once(image: np.ndarray, camera: Camera, cand: dict, smoothed: np.ndarray) -> list[dict]:
