@@ -154,7 +154,6 @@ def set_profile(folder: str, profile: dict) -> None:
         raise DatasetError(f"{folder} was made with other options: {diff}; complete it with those or use a new folder")
 
 
-
 def make_set(folder: str, count: int, spp: int, first: int = 0, cycles: bool = True,
              pixel_filter: str = "box", res: int | None = None, fov_deg: float | None = None,
              chrome_radius_px: tuple[float, float] | None = None) -> None:
@@ -498,10 +497,10 @@ def main() -> None:
                         ("--chrome-radius", args.chrome_radius)):
         if value and not args.make:
             ap.error(f"{flag} needs --make N (it sets how the set's scenes are made)")
-    side = args.res or min(ps.ROOM_RES_CHOICES)
-    if args.chrome_radius and args.chrome_radius[1] > ps.ROOM_MAX_RADIUS_SHARE * side:
-        ap.error(f"--chrome-radius {args.chrome_radius[1]} px is more than {100 * ps.ROOM_MAX_RADIUS_SHARE:g}% of the "
-                 f"image side ({side} px): the spheres would not fit beside each other")
+    try:
+        ps.check_chrome_radius(args.chrome_radius, args.res)
+    except ValueError as exc:
+        ap.error(f"--chrome-radius: {exc}")
     if args.refilter:
         refilter_set(args.set, args.refilter, args.refilter_blur)
         return

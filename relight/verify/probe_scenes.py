@@ -25,7 +25,7 @@ __all__ = [
     "GROUND_ALBEDO", "WINDOW_RADIANCE", "MAX_VIEW_LIGHT_ANGLE_DEG", "MIN_LIGHT_ELEVATION_DEG", "FOV_RANGE_DEG",
     "RADIUS_PX_RANGE", "FIREFLY_RATIO", "DEPTH_RANGE", "ProbeScene", "sample_probe_scene", "remove_fireflies",
     "render_probe_scene",
-    "specular_point", "sample_room_scene", "room_sphere_camera", "room_circle", "room_sphere", "render_room_mitsuba", "CYCLES_PIXEL_FILTERS", "render_room_cycles", "main",
+    "specular_point", "check_chrome_radius", "sample_room_scene", "room_sphere_camera", "room_circle", "room_sphere", "render_room_mitsuba", "CYCLES_PIXEL_FILTERS", "render_room_cycles", "main",
 ]
 
 import math
@@ -365,6 +365,22 @@ def specular_point(centre, radius: float, eye, light) -> np.ndarray:
     return c + radius * n
 
 
+def check_chrome_radius(chrome_radius_px, res: int | None = None) -> None:
+    """Raise ``ValueError`` (one line) unless ``chrome_radius_px`` (``(lo, hi)`` pixels, or
+    None) has ``0 < lo <= hi`` and ``hi`` at most :data:`ROOM_MAX_RADIUS_SHARE` of the image
+    side ``res`` (of the smallest drawn side, :data:`ROOM_RES_CHOICES`, if None): a larger
+    chrome sphere leaves no room beside it for the other two."""
+    if chrome_radius_px is None:
+        return
+    lo, hi = chrome_radius_px
+    if not 0 < lo <= hi:
+        raise ValueError(f"a chrome radius range must be LO-HI with 0 < LO <= HI, got {lo:g}-{hi:g}")
+    side = res or min(ROOM_RES_CHOICES)
+    if hi > ROOM_MAX_RADIUS_SHARE * side:
+        raise ValueError(f"a chrome radius of {hi:g} px is more than {100 * ROOM_MAX_RADIUS_SHARE:g}% of the image "
+                         f"side ({side} px): the spheres would not fit beside each other")
+
+
 def sample_room_scene(seed: int, res: int | None = None, fov_deg: float | None = None,
                       chrome_radius_px: tuple[float, float] | None = None) -> dict:
     """A random probe scene of the harder set (a ``relight.probe-scene/v1`` dict, with
@@ -375,11 +391,7 @@ def sample_room_scene(seed: int, res: int | None = None, fov_deg: float | None =
     is None; :data:`ROOM_RADIUS_PX` within that if None). With all three None a seed gives
     the scene it always gave. A draw whose spheres or light cannot be placed is drawn
     again (another stream)."""
-    if chrome_radius_px is not None:
-        side = res or min(ROOM_RES_CHOICES)
-        if not 0 < chrome_radius_px[0] <= chrome_radius_px[1] <= ROOM_MAX_RADIUS_SHARE * side:
-            raise ValueError(f"chrome_radius_px must be (lo, hi) with 0 < lo <= hi <= {ROOM_MAX_RADIUS_SHARE:g} of "
-                             f"the image side ({side} px), got {tuple(chrome_radius_px)}")
+    check_chrome_radius(chrome_radius_px, res)
     for attempt in range(50):
         try:
             return _sample_room_scene(np.random.default_rng([10_000 + seed, attempt]), seed, res, fov_deg,
