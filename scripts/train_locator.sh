@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The shipped chrome-sphere locator (relight/models/probe_locator.safetensors; relight.probe.locator,
-# docs/probe.md twelfth round): 1,214 generated probe scenes rendered by Mitsuba (seeds 100000-101213,
+# docs/probe-history.md twelfth round): 1,214 generated probe scenes rendered by Mitsuba (seeds 100000-101213,
 # disjoint from every set it is judged on), then 16 epochs with a camera pipeline on half the images.
 # Resumable: re-run the same command (finished scenes are skipped). Default root /root/relight-data.
 # About 30 minutes of rendering and 12 minutes of training on a quiet 2-core machine.

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The shipped outline check (relight/models/probe_outline_check.safetensors; relight.probe.outline_check,
-# docs/probe.md fourteenth round): trained on the locator's 1,214 Mitsuba training scenes (seeds
+# docs/probe-history.md fourteenth round): trained on the locator's 1,214 Mitsuba training scenes (seeds
 # 100000-101213, disjoint from every set it is judged on; scripts/train_locator.sh renders the missing
 # ones), 24 candidate circles drawn around each true one, half of them through a camera pipeline.
 # Resumable: re-run the same command (the rendering skips finished scenes; the training starts over,

@@ -29,7 +29,7 @@ def add_commands(sub) -> None:
                    "(x right, y down, origin top-left, pixel centres at +0.5); refined on the image's "
                    "edges only within --circle-tolerance. Give it only as exact as that: on 15-20 px "
                    "spheres a circle marked 0.5 px rms off gave 3.5 deg at the median, none (found "
-                   "automatically) 1.6 (docs/probe.md)")
+                   "automatically) 1.6 (docs/probe-history.md, twenty-first round)")
     p.add_argument("--chrome-mask", help="mask image, white where the chrome sphere is")
     p.add_argument("--diffuse", help="image with a diffuse sphere (gives the colour); may be the chrome image")
     p.add_argument("--diffuse-circle", type=circle, help="CX,CY,R: the diffuse sphere's outline in pixels")

@@ -200,7 +200,7 @@ def chrome_rim_shift_px(image: np.ndarray) -> float:
     0.12-0.25 px inside for a blur of 0.58-1.5 px, about 0.2 blur widths; on a uniform
     disc 0.02 px: the shift is the mirror's, not the method's). The outermost-rim fit,
     settled (:func:`outer_rim_fit`), comes out that much small: 0.15 px on the harder
-    set's Cycles renders, 0.11 px on Mitsuba rooms, at the median. See docs/probe.md,
+    set's Cycles renders, 0.11 px on Mitsuba rooms, at the median. See docs/probe-history.md,
     sixteenth and seventeenth rounds."""
     return CHROME_RIM_SHIFT * edge_blur_px(image)
 
@@ -255,7 +255,7 @@ def edge_points(smoothed: np.ndarray, camera: Camera, guess: Sphere, band_px: fl
     lattice's half steps). That is imprecise, but an edge whose gradient still rises at
     the band's end (an outline beyond it) pulls the fit there step by step, which the
     search for an outline relies on: started away from the outline, fits with edges at
-    their peaks settled on reflections inside it (docs/probe.md, twentieth round)."""
+    their peaks settled on reflections inside it (docs/probe-history.md, twentieth round)."""
     theta = np.linspace(-np.pi, np.pi, angles, endpoint=False)
     cx, cy, r_theta = _polar_outline(camera, guess, theta)
     step = 0.25
@@ -388,7 +388,7 @@ def constrained_refinement(image: np.ndarray, camera: Camera, circle, tolerance_
     (:func:`outer_rim_fit`: the outermost edges, those further inside being reflections),
     and so is its misfit; any other sphere's is :func:`refine_sphere`'s symmetric robust
     fit. On the harder probe set's Cycles renders with the true circle given (held-out
-    14-18 and a set drawn as the team's renders, docs/probe.md, twenty-first round) the
+    14-18 and a set drawn as the team's renders, docs/probe-history.md, twenty-first round) the
     symmetric fit, pulled in by the reflections, moved circles that were right (the light
     7.5 deg off on one); the chrome fit leaves them, and the light's median error is that
     of the circle unrefined."""
@@ -672,7 +672,7 @@ def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = N
         return -1 if found is None else found[0]
     # an extra proposal comes first: Hough circles refined to the same place then add
     # nothing (proposed after them, or only where they left no candidate, it found fewer
-    # spheres on the held-out sets: docs/probe.md, twelfth round)
+    # spheres on the held-out sets: docs/probe-history.md, twelfth round)
     proposals = ([(*(float(v) for v in c), PROPOSAL_RADIUS_HYPOTHESES) for c in extra]
                  + [(*c, RADIUS_HYPOTHESES) for c in hough_circles(image, clip_level, screen)])
     for cx, cy, r, hypotheses in proposals:
@@ -797,7 +797,7 @@ def _outermost_outline(image: np.ndarray, camera: Camera, cand: dict, smoothed: 
     the largest of all those found (the candidate's, and every larger one that passed)
     within it, the candidate's when none is: outermost is sometimes too far, the mirror's
     own surroundings (a contact shadow, a lit patch beside it) drawing a larger circle
-    still, the commonest wrong detection left (docs/probe.md, thirteenth round)."""
+    still, the commonest wrong detection left (docs/probe-history.md, thirteenth round)."""
     chain = [cand]
     for _ in range(GROW_ROUNDS):
         grown = _grow_once(image, camera, chain[-1], smoothed)
@@ -864,7 +864,7 @@ def outer_rim_fit(smoothed: np.ndarray, camera: Camera, sphere: Sphere) -> Spher
     that inner edges pulled in and up ends part of the way. Settled, it is repeated with
     each edge at its own gradient's peak (:func:`edge_points` ``peak``): on the harder
     probe set's Cycles renders the outline's centre is 0.137 px from the truth at the
-    median, 0.159 without that last step (docs/probe.md, twentieth round). Returns
+    median, 0.159 without that last step (docs/probe-history.md, twentieth round). Returns
     ``sphere`` itself when neither first pass finds a fit, or the outline would end more
     than 15% of the radius from it (a different circle)."""
     cx0, cy0, r0 = outline_circle(camera, sphere)

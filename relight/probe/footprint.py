@@ -22,7 +22,7 @@ four, an L) the light lies nearer the middle pixel than their centroid says. On 
 harder probe set's Cycles renders (820 scenes, the true circle) the median highlight
 error went 1.04 -> 0.98 deg (three clipped pixels: 0.21 -> 0.17 px); knowing each
 light's true size gives 0.95, the binary image's floor (``bench_probe.py --floor``;
-docs/probe.md, nineteenth round).
+docs/probe-history.md, nineteenth round).
 """
 from __future__ import annotations
 

@@ -4,7 +4,7 @@ The hand-written detector (:mod:`relight.probe.detect`) proposes circles and sco
 by rules (edge support, a highlight's contrast and shape, the radius). Fitted to the 40
 scenes of the harder probe set, its choice among the chrome-looking circles did not carry
 to held-out scenes (a circle on another ball, on the wall, on the sphere's own reflection;
-docs/probe.md, eleventh round). This small network is trained instead on generated probe
+docs/probe-history.md, eleventh round). This small network is trained instead on generated probe
 scenes, where the sphere's circle is known exactly at no cost, and gives the detector a
 prior: its pick score gains :data:`relight.probe.detect.LOCATOR_WEIGHT` times the log of
 the probability the network puts near each candidate's centre (:meth:`CentreMap.mass_near`).
@@ -17,7 +17,7 @@ lies there (a softmax over the grid: one chrome sphere per image), where in the 
 the log of the radius in cells. Trained on Mitsuba renders only (with a camera pipeline
 drawn on half of them: exposure, noise, blur, tone curve), judged on Cycles renders and
 photographs it never saw. The shipped weights (:data:`WEIGHTS`) are reproduced by
-``bash scripts/train_locator.sh`` (docs/probe.md, twelfth round).
+``bash scripts/train_locator.sh`` (docs/probe-history.md, twelfth round).
 """
 from __future__ import annotations
 
@@ -54,7 +54,7 @@ JUDGED_RADIUS_FRACTION = 1.1 * TRAINED_RADIUS_FRACTION   # ... so circles larger
 RADIUS_MASS = 0.05   # where it puts at least 5% of its probability, a sphere's radius is at most
 RADIUS_BOUND = 1.25  # 1.25 times the radius it gives there (on the 220 Cycles scenes of the probe
                      # sets, where it put that much at the true centre, the true radius was 0.79-1.45
-                     # times its, median 1.01, 97.5th percentile 1.25; docs/probe.md, thirteenth round)
+                     # times its, median 1.01, 97.5th percentile 1.25; docs/probe-history.md, thirteenth round)
 WEIGHTS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "models",
                        "probe_locator.safetensors")
 

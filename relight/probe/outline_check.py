@@ -5,7 +5,7 @@ The detector's edge fit (:mod:`relight.probe.detect`) measures an outline to a f
 pixel, but which outline it settles on depends on where it starts: a sphere standing on a
 floor has a contact shadow beside it whose edge, with the sphere's far side, draws a circle
 20-30% larger and a few pixels off, as well supported by edges as the sphere's own (the
-commonest wrong detection left after the thirteenth round, docs/probe.md). The learned
+commonest wrong detection left after the thirteenth round, docs/probe-history.md). The learned
 locator (:mod:`relight.probe.locator`) sees the whole image at 8 px a cell and cannot tell
 the two apart. This network looks at one candidate: a window of :data:`WINDOW` radii around
 it, resampled to :data:`SIZE` px, and says where the sphere's circle lies relative to it
