@@ -168,6 +168,7 @@ def make_set(folder: str, count: int, spp: int, first: int = 0, cycles: bool = T
     from tqdm import tqdm
 
     from relight import backend
+    from relight.children import child_env
     from relight.scene.blender import blender_python
     from relight.fileio import atomic_write
     from relight.imageio import write_exr, write_png
@@ -197,7 +198,7 @@ def make_set(folder: str, count: int, spp: int, first: int = 0, cycles: bool = T
     todo = [p for p in paths if not os.path.exists(p[:-5] + ".cycles.png")]
     if not todo:
         return
-    env = dict(os.environ, PYTHONPATH=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    env = dict(child_env(), PYTHONPATH=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     cmd = [python, "-m", "relight.verify.probe_scenes", "cycles", *todo, "--spp", str(spp), "--pixel-filter", pixel_filter]
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, text=True)
     for line in tqdm(proc.stdout, total=len(todo), desc="Cycles renders", unit="scene"):

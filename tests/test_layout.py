@@ -19,7 +19,7 @@ ROOT = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
 
 # bottom to top; README "Layout" draws the same picture
 LAYERS = (
-    {"errors", "frames", "colour", "timing"},             # foundations: no relight import but these
+    {"errors", "frames", "colour", "timing", "children"}, # foundations: no relight import but these
     {"fileio", "backend", "metrics"},
     {"imageio", "engine", "predictions", "render"},       # files, the Dask engine, the one render call
     {"scene", "probe"},                                   # scene files -> images; probe spheres -> light

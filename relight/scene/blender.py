@@ -49,6 +49,7 @@ import time
 import numpy as np
 
 from relight import frames
+from relight.children import child_env, die_with_parent
 from relight.scene.spec import SceneSpec
 from relight.errors import BlenderError
 
@@ -420,7 +421,7 @@ def run_blender_module(args: list[str], python: str | None = None, **kwargs) -> 
     python = python or blender_python()
     if python is None:
         raise BlenderError(INSTALL_HINT)
-    env = dict(os.environ)
+    env = child_env()
     env["PYTHONPATH"] = os.pathsep.join(p for p in (_repo_root(), env.get("PYTHONPATH")) if p)
     return subprocess.run([python, "-m", "relight.scene.blender", *args], env=env, **kwargs)
 
@@ -437,7 +438,7 @@ class CyclesWorker:
         if python is None:
             raise BlenderError(INSTALL_HINT)
         self._tmp = tempfile.TemporaryDirectory(prefix="relight-cycles-")
-        env = dict(os.environ)
+        env = child_env()
         env["PYTHONPATH"] = os.pathsep.join(p for p in (_repo_root(), env.get("PYTHONPATH")) if p)
         cmd = [python, "-m", "relight.scene.blender", "worker"]
         if threads is not None:
@@ -524,6 +525,7 @@ def main(argv: list[str] | None = None) -> int:
     w = sub.add_parser("worker")
     w.add_argument("--threads", type=int, default=None)
     args = ap.parse_args(argv)
+    die_with_parent()      # started by relight (run_blender_module, CyclesWorker): ends with it
     try:
         if args.what == "worker":
             return _worker(args.threads)

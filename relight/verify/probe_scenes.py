@@ -677,7 +677,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--pixel-filter", choices=sorted(CYCLES_PIXEL_FILTERS), default="box")
     args = ap.parse_args(argv)
+    from relight.children import die_with_parent
     from relight.fileio import atomic_write
+    die_with_parent()      # started by bench_probe.py: ends with it
     for path in args.scenes:
         out = path[:-len(".json")] + ".cycles.exr"
         if os.path.exists(out):
