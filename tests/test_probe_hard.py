@@ -657,10 +657,13 @@ def _assert_grows_to_the_outline(image, cam, circle, start, locks_below):
 
 
 def test_every_radius_that_passes_the_screen_is_refined(monkeypatch):
-    # a chrome sphere on a dark plate of broken outline (floor dots), 1.2 times its radius and
+    # a chrome sphere on a dark plate of broken outline (floor dots), 1.3 times its radius and
     # 3 px higher: the one proposal is the plate's circle. The screen keeps the proposal's
     # centre, so the sphere's radius (0.85 of it) screens worse than the plate's own; refined,
-    # it lands on the sphere, which is better supported than the plate
+    # it lands on the sphere, which is better supported than the plate.
+    # (The plate's rim lies 2.75 px below the sphere's. With 1.2 times the radius, 0.8 px
+    # below it, whether the outermost-rim fit takes the plate's rim for the sphere's depended
+    # on the CPU's BLAS kernel: docs/probe-history.md, twenty-third round.)
     cam = pg.Camera.from_fov(W, H, FOV_DEG)
     sphere = _sphere_at(cam, 80.0, 62.0, 5.0)
     cx, cy, r = detect.outline_circle(cam, sphere)
@@ -668,12 +671,16 @@ def test_every_radius_that_passes_the_screen_is_refined(monkeypatch):
     # linear in the background: the sphere over any background is i0 + background (i1 - i0)
     i0 = _render(cam, sphere, to_light, background=0.0, clip=False)
     i1 = _render(cam, sphere, to_light, background=1.0, clip=False)
-    plate = (cx, cy - 3.0, 1.2 * r)
+    plate = (cx, cy - 3.0, 1.3 * r)
     ys, xs = np.mgrid[0:H, 0:W] + 0.5
     dots = np.sin(6.0 * np.arctan2(ys - plate[1], xs - plate[0])) > 0.5
     background = np.where((np.hypot(xs - plate[0], ys - plate[1]) < plate[2]) & dots, 0.05, 0.35)
     background = ndimage.gaussian_filter(background, 0.6)[..., None]
     image = _quantise(np.clip(i0 + background * (i1 - i0), 0.0, 1.0))
+    # the premise: at the proposal's centre the plate's radius screens better than the sphere's
+    smoothed = detect._edge_image(detect.detection_view(image, 1.0)[0])
+    assert detect._screen(smoothed, cam, *plate)[0] > detect._screen(smoothed, cam, plate[0], plate[1],
+                                                                     0.85 * plate[2])[0]
     monkeypatch.setattr(detect, "hough_circles", lambda img, *args: [plate])
     chrome = detect.pick_sphere(detect.find_spheres(image, cam, clip_level=1.0), "chrome")   # an 8-bit image
     assert math.dist(chrome["circle"][:2], (cx, cy)) < 0.5
