@@ -6,6 +6,10 @@ it: killed at any moment, a long job leaves no renderer running on. The parent m
 child's environment (:func:`child_env`); the child, first thing, asks the kernel for
 ``SIGTERM`` when its parent dies (:func:`die_with_parent`; Linux ``prctl``), and exits at
 once if the parent is already gone. Run by hand (no mark), a module is left alone.
+
+The kernel sends the signal when the *thread* that started the child ends: start a child
+from a thread that lives as long as the child is needed (relight starts them from the
+main thread).
 """
 from __future__ import annotations
 
