@@ -656,14 +656,70 @@ def _assert_grows_to_the_outline(image, cam, circle, start, locks_below):
     assert grown["chrome"]
 
 
+_RIM_FIT_ON_A_PLATE = """
+import json, sys
+import numpy as np
+from scipy import ndimage
+sys.path.insert(0, sys.argv[1])
+import test_probe_hard as T
+from relight.probe import detect, geometry as pg
+cam = pg.Camera.from_fov(T.W, T.H, T.FOV_DEG)
+sphere = T._sphere_at(cam, 80.0, 62.0, 5.0)
+cx, cy, r = detect.outline_circle(cam, sphere)
+i0 = T._render(cam, sphere, np.array([0.3, 0.4, 0.87]), background=0.0, clip=False)
+i1 = T._render(cam, sphere, np.array([0.3, 0.4, 0.87]), background=1.0, clip=False)
+plate = (cx, cy - 3.0, 1.2 * r)
+ys, xs = np.mgrid[0:T.H, 0:T.W] + 0.5
+dots = np.sin(6.0 * np.arctan2(ys - plate[1], xs - plate[0])) > 0.5
+background = np.where((np.hypot(xs - plate[0], ys - plate[1]) < plate[2]) & dots, 0.05, 0.35)
+image = T._quantise(np.clip(i0 + ndimage.gaussian_filter(background, 0.6)[..., None] * (i1 - i0), 0.0, 1.0))
+view, _ = detect.detection_view(image, 1.0)
+smoothed = detect._edge_image(view)
+guess = detect._screen(smoothed, cam, plate[0], plate[1], 0.85 * plate[2])[1]
+refined, _ = detect.refine_sphere(view, cam, guess, smoothed, first_band_px=3.0)
+print(json.dumps({"fit": detect.outline_circle(cam, detect.outer_rim_fit(smoothed, cam, refined)),
+                  "true": [cx, cy, r]}))
+"""
+
+
+def _cpu_flags() -> set:
+    try:
+        with open("/proc/cpuinfo") as f:
+            return next((set(line.split(":", 1)[1].split()) for line in f if line.startswith("flags")), set())
+    except OSError:
+        return set()
+
+
+@pytest.mark.skipif("avx" not in _cpu_flags(), reason="needs an x86-64 CPU with AVX (OpenBLAS's Sandybridge kernel)")
+def test_the_outermost_rim_fit_does_not_depend_on_the_blas_kernel():
+    # a mirror on a dark dotted plate 1.2 times its radius, 3 px higher (the plate's rim 0.8 px
+    # below the sphere's): edge points sit on the search's quarter-pixel steps, and whether one
+    # exactly on the outline counted as outside was decided by the last bits of a projection,
+    # which numpy's OpenBLAS kernel sets. Two kernels any x86-64 CPU with AVX runs must agree,
+    # and keep the sphere (with the Prescott kernel the fit once moved 1.1 px onto the plate)
+    import subprocess
+    import sys
+    here = os.path.dirname(os.path.abspath(__file__))
+    fits = []
+    for kernel in ("Prescott", "Sandybridge"):
+        env = dict(os.environ, OPENBLAS_CORETYPE=kernel,
+                   PYTHONPATH=os.pathsep.join(p for p in (os.path.dirname(here), os.environ.get("PYTHONPATH")) if p))
+        done = subprocess.run([sys.executable, "-c", _RIM_FIT_ON_A_PLATE, here], env=env, capture_output=True,
+                              text=True, timeout=300)
+        assert done.returncode == 0, done.stderr[-2000:]
+        fits.append(json.loads(done.stdout.strip().splitlines()[-1]))
+    (a, b) = fits
+    assert np.allclose(a["fit"], b["fit"], atol=1e-4)
+    assert math.dist(a["fit"][:2], a["true"][:2]) < 0.5 and abs(a["fit"][2] - a["true"][2]) < 0.5
+
+
 def test_every_radius_that_passes_the_screen_is_refined(monkeypatch):
     # a chrome sphere on a dark plate of broken outline (floor dots), 1.3 times its radius and
     # 3 px higher: the one proposal is the plate's circle. The screen keeps the proposal's
     # centre, so the sphere's radius (0.85 of it) screens worse than the plate's own; refined,
     # it lands on the sphere, which is better supported than the plate.
-    # (The plate's rim lies 2.75 px below the sphere's. With 1.2 times the radius, 0.8 px
-    # below it, whether the outermost-rim fit takes the plate's rim for the sphere's depended
-    # on the CPU's BLAS kernel: docs/probe-history.md, twenty-third round.)
+    # (the plate's rim 2.75 px below the sphere's: with 1.2 times the radius, 0.8 px below it,
+    # the outermost-rim fit's choice is the next test's)
     cam = pg.Camera.from_fov(W, H, FOV_DEG)
     sphere = _sphere_at(cam, 80.0, 62.0, 5.0)
     cx, cy, r = detect.outline_circle(cam, sphere)

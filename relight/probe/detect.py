@@ -26,7 +26,7 @@ __all__ = [
     "read_probe_image", "load_mask", "edge_points", "refine_sphere", "sphere_features", "hough_circles",
     "camera_exposure", "exposed_like_a_camera", "detection_view", "HDR_CLIP_SHARE", "find_spheres", "is_chrome", "is_diffuse", "pick_sphere",
     "outline_fit_px", "constrained_refinement", "GROW_RADII", "GROW_FINE_RADII", "GROW_MIN_SUPPORT_RATIO", "GROW_ROUNDS",
-    "PICK_HIGHLIGHT_WEIGHT", "PICK_RADIUS_WEIGHT", "CHROME_INSIDE_PX", "RIM_FIT_ROUNDS", "RIM_FIT_SETTLED_PX", "outer_rim_fit", "DETECTION_MARGIN",
+    "PICK_HIGHLIGHT_WEIGHT", "PICK_RADIUS_WEIGHT", "CHROME_INSIDE_PX", "ON_OUTLINE_PX", "RIM_FIT_ROUNDS", "RIM_FIT_SETTLED_PX", "outer_rim_fit", "DETECTION_MARGIN",
     "rival_sphere", "share_the_rest", "CHROME_RIM_SHIFT", "PIXEL_BLUR_PX", "edge_blur_px", "chrome_rim_shift_px",
     "outline_from_rim",
 ]
@@ -72,6 +72,10 @@ GROW_ROUNDS = 3                # ... again from the larger one, up to three time
 CHECK_MOVE = 0.1               # the learned outline check's circle this far from a chrome outline: fitted again there
 CHROME_INSIDE_PX = 0.5         # a chrome outline's edge points further inside than this are reflections
                                # (about 1.5 robust sigmas of the edge points' scatter on a true rim, 0.3 px)
+ON_OUTLINE_PX = 1e-6           # an edge point this close to a threshold is on it: edge points sit on the search's
+                               # quarter-pixel steps around the outline they were searched from, so a distance
+                               # compared with 0, -0.5 or 0.75 px is otherwise decided by the last bits of a
+                               # projection (which the CPU's BLAS kernel sets: docs/probe-history.md, 23rd round)
 RIM_FIT_ROUNDS = 3             # a chrome outline's fit to its outermost edges repeated from its own outline at most this often,
 RIM_FIT_SETTLED_PX = 0.01      # ... until it moves less than this
 CHROME_RIM_SHIFT = 0.2         # a mirror sphere's rim edges lie this many blur widths inside its outline
@@ -903,11 +907,11 @@ def _outer_rim_pass(smoothed: np.ndarray, camera: Camera, sphere: Sphere, peak: 
             return sphere
         keep = np.ones(x.size, bool)
         dist = _outline_distance(camera, fitted, x, y)
-        if band == 2.0 and (dist >= 0).sum() >= 0.3 * EDGE_ANGLES:
+        if band == 2.0 and (dist >= -ON_OUTLINE_PX).sum() >= 0.3 * EDGE_ANGLES:
             # start from the points on or outside the outline: a symmetric fit that the inner
             # edges pulled in and up leaves them within a fraction of a pixel of it, the rim's
             # own points (at the sides) outside
-            keep = dist >= 0
+            keep = dist >= -ON_OUTLINE_PX
             try:
                 fitted = fit_sphere(camera, x[keep], y[keep], robust=False)
             except ProbeError:
@@ -916,7 +920,8 @@ def _outer_rim_pass(smoothed: np.ndarray, camera: Camera, sphere: Sphere, peak: 
             dist = _outline_distance(camera, fitted, x, y)
             kept = dist[keep]
             mad = 1.4826 * np.median(np.abs(kept - np.median(kept)))
-            new = (dist >= -CHROME_INSIDE_PX) & (dist <= max(REJECT_MIN_PX, REJECT_SIGMAS * mad))
+            new = ((dist >= -CHROME_INSIDE_PX - ON_OUTLINE_PX)
+                   & (dist <= max(REJECT_MIN_PX, REJECT_SIGMAS * mad) + ON_OUTLINE_PX))
             if new.sum() < 0.3 * EDGE_ANGLES:
                 return sphere
             if np.array_equal(new, keep):
