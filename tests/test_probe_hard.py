@@ -656,29 +656,37 @@ def _assert_grows_to_the_outline(image, cam, circle, start, locks_below):
     assert grown["chrome"]
 
 
+def _mirror_on_a_plate(plate_scale: float):
+    """A chrome sphere (true circle ``(cx, cy, r)``) on a dark plate of broken outline (floor
+    dots), ``plate_scale`` times its radius and 3 px higher, as an 8-bit image: returns
+    ``(image, cam, (cx, cy, r), plate)``."""
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 62.0, 5.0)
+    cx, cy, r = detect.outline_circle(cam, sphere)
+    to_light = np.array([0.3, 0.4, 0.87])
+    # linear in the background: the sphere over any background is i0 + background (i1 - i0)
+    i0 = _render(cam, sphere, to_light, background=0.0, clip=False)
+    i1 = _render(cam, sphere, to_light, background=1.0, clip=False)
+    plate = (cx, cy - 3.0, plate_scale * r)
+    ys, xs = np.mgrid[0:H, 0:W] + 0.5
+    dots = np.sin(6.0 * np.arctan2(ys - plate[1], xs - plate[0])) > 0.5
+    background = np.where((np.hypot(xs - plate[0], ys - plate[1]) < plate[2]) & dots, 0.05, 0.35)
+    background = ndimage.gaussian_filter(background, 0.6)[..., None]
+    return _quantise(np.clip(i0 + background * (i1 - i0), 0.0, 1.0)), cam, (cx, cy, r), plate
+
+
 _RIM_FIT_ON_A_PLATE = """
 import json, sys
-import numpy as np
-from scipy import ndimage
 sys.path.insert(0, sys.argv[1])
 import test_probe_hard as T
-from relight.probe import detect, geometry as pg
-cam = pg.Camera.from_fov(T.W, T.H, T.FOV_DEG)
-sphere = T._sphere_at(cam, 80.0, 62.0, 5.0)
-cx, cy, r = detect.outline_circle(cam, sphere)
-i0 = T._render(cam, sphere, np.array([0.3, 0.4, 0.87]), background=0.0, clip=False)
-i1 = T._render(cam, sphere, np.array([0.3, 0.4, 0.87]), background=1.0, clip=False)
-plate = (cx, cy - 3.0, 1.2 * r)
-ys, xs = np.mgrid[0:T.H, 0:T.W] + 0.5
-dots = np.sin(6.0 * np.arctan2(ys - plate[1], xs - plate[0])) > 0.5
-background = np.where((np.hypot(xs - plate[0], ys - plate[1]) < plate[2]) & dots, 0.05, 0.35)
-image = T._quantise(np.clip(i0 + ndimage.gaussian_filter(background, 0.6)[..., None] * (i1 - i0), 0.0, 1.0))
+from relight.probe import detect
+image, cam, true, plate = T._mirror_on_a_plate(1.2)
 view, _ = detect.detection_view(image, 1.0)
 smoothed = detect._edge_image(view)
 guess = detect._screen(smoothed, cam, plate[0], plate[1], 0.85 * plate[2])[1]
 refined, _ = detect.refine_sphere(view, cam, guess, smoothed, first_band_px=3.0)
 print(json.dumps({"fit": detect.outline_circle(cam, detect.outer_rim_fit(smoothed, cam, refined)),
-                  "true": [cx, cy, r]}))
+                  "true": list(true)}))
 """
 
 
@@ -720,19 +728,7 @@ def test_every_radius_that_passes_the_screen_is_refined(monkeypatch):
     # it lands on the sphere, which is better supported than the plate.
     # (the plate's rim 2.75 px below the sphere's: with 1.2 times the radius, 0.8 px below it,
     # the outermost-rim fit's choice is the next test's)
-    cam = pg.Camera.from_fov(W, H, FOV_DEG)
-    sphere = _sphere_at(cam, 80.0, 62.0, 5.0)
-    cx, cy, r = detect.outline_circle(cam, sphere)
-    to_light = np.array([0.3, 0.4, 0.87])
-    # linear in the background: the sphere over any background is i0 + background (i1 - i0)
-    i0 = _render(cam, sphere, to_light, background=0.0, clip=False)
-    i1 = _render(cam, sphere, to_light, background=1.0, clip=False)
-    plate = (cx, cy - 3.0, 1.3 * r)
-    ys, xs = np.mgrid[0:H, 0:W] + 0.5
-    dots = np.sin(6.0 * np.arctan2(ys - plate[1], xs - plate[0])) > 0.5
-    background = np.where((np.hypot(xs - plate[0], ys - plate[1]) < plate[2]) & dots, 0.05, 0.35)
-    background = ndimage.gaussian_filter(background, 0.6)[..., None]
-    image = _quantise(np.clip(i0 + background * (i1 - i0), 0.0, 1.0))
+    image, cam, (cx, cy, r), plate = _mirror_on_a_plate(1.3)
     # the premise: at the proposal's centre the plate's radius screens better than the sphere's
     smoothed = detect._edge_image(detect.detection_view(image, 1.0)[0])
     assert detect._screen(smoothed, cam, *plate)[0] > detect._screen(smoothed, cam, plate[0], plate[1],
