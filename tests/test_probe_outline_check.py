@@ -95,8 +95,64 @@ def test_find_spheres_asks_the_check_about_chrome_outlines_and_keeps_those_it_ag
     plain = detect.find_spheres(image, cam, 1.0)
     checked = detect.find_spheres(image, cam, 1.0, outline_check=agree)
     chrome = [c["circle"] for c in plain if c["chrome"]]
-    assert chrome and sorted(asked) == sorted(chrome)
+    # (each one twice: where the sphere lies seen from it, then how far that is from it)
+    assert chrome and sorted(asked) == sorted(chrome + chrome)
     assert [c["circle"] for c in checked] == [c["circle"] for c in plain]
+
+
+def test_of_two_nested_chrome_circles_the_one_the_check_prefers_stays():
+    # a sphere's circle (r 17) and its cast shadow's (r 19, lower; as well supported): the
+    # rules keep the outer one; when the check, seen from each, puts the sphere clearly
+    # nearer the inner one, the outer one goes instead
+    def cand(circle, support, gap):
+        return {"circle": circle, "edge_support": support, "chrome": True, "check_gap": gap}
+    sphere, shadow = (100.0, 100.0, 17.0), (100.5, 101.8, 19.0)
+    keep = lambda a, b: [c["circle"] for c in detect._drop_inner_circles([cand(sphere, *a), cand(shadow, *b)])]
+    assert keep((0.54, None), (0.55, None)) == [shadow]
+    assert keep((0.54, 0.05), (0.55, 0.22)) == [sphere]
+    assert keep((0.54, 0.05), (0.55, 0.05 + detect.CHECK_PREFER - 0.01)) == [shadow]     # within the margin
+    assert keep((0.54, 0.05), (0.55, None)) == [shadow]                                   # no opinion on one
+    assert keep((0.54, 0.22), (0.55, 0.05)) == [shadow]
+    # an outer circle clearly less supported never hid the inner one: both stay, whatever the check
+    assert len(keep((0.70, 0.22), (0.55, 0.05))) == 2 and len(keep((0.70, 0.05), (0.55, 0.22))) == 2
+    # the check's preference concerns chrome circles only
+    got = detect._drop_inner_circles([{**cand(sphere, 0.54, 0.05), "chrome": False}, cand(shadow, 0.55, 0.22)])
+    assert [c["circle"] for c in got] == [shadow]
+
+
+def _mirror_with_a_shadow(scale: float):
+    """The test sphere on a lit floor (0.35) with its cast shadow (0.05) beside its lower
+    half: a disc ``scale`` times its radius whose top nearly touches the sphere's, as an
+    8-bit image; returns ``(image, cam, true circle, shadow circle)``."""
+    from scipy import ndimage
+    from relight.probe import geometry as pg
+    from test_probe_hard import FOV_DEG, H, W, _quantise, _render, _sphere_at
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 62.0, 5.0)
+    cx, cy, r = detect.outline_circle(cam, sphere)
+    to_light = np.array([0.3, 0.4, 0.87])
+    i0 = _render(cam, sphere, to_light, background=0.0, clip=False)
+    i1 = _render(cam, sphere, to_light, background=1.0, clip=False)
+    shadow = (cx + 0.3 * (scale - 1.0) * r, cy + 0.95 * (scale - 1.0) * r, scale * r)
+    ys, xs = np.mgrid[0:H, 0:W] + 0.5
+    floor = np.where((np.hypot(xs - shadow[0], ys - shadow[1]) < shadow[2]) & (ys > cy), 0.05, 0.35)
+    floor = ndimage.gaussian_filter(floor, 0.6)[..., None]
+    return _quantise(np.clip(i0 + floor * (i1 - i0), 0.0, 1.0)), cam, (cx, cy, r), shadow
+
+
+def test_a_cast_shadows_circle_gives_way_to_the_sphere_the_check_finds():
+    image, cam, truth, shadow = _mirror_with_a_shadow(1.2)
+    near = lambda c, ref, tol: math.dist(c[:2], ref[:2]) < tol and abs(c[2] - ref[2]) < tol
+    # the premise: with no preference from the check (it agrees with every circle) the
+    # detector settles on the shadow's circle
+    agree = lambda circles: np.asarray(circles, float)
+    picked = detect.pick_sphere(detect.find_spheres(image, cam, 1.0, outline_check=agree), "chrome")["circle"]
+    assert near(picked, shadow, 0.5) and not near(picked, truth, 2.0)
+    # a check that knows where the sphere is (slightly off, as a network would be): the
+    # sphere's own circle is fitted there and the shadow's gives way to it
+    sure = lambda circles: np.array([(truth[0] + 0.2, truth[1] - 0.1, truth[2] * 1.02)] * len(circles))
+    picked = detect.pick_sphere(detect.find_spheres(image, cam, 1.0, outline_check=sure), "chrome")["circle"]
+    assert near(picked, truth, 0.3)
 
 
 def test_the_check_judges_circles_up_to_the_largest_it_was_trained_on():
