@@ -656,23 +656,35 @@ def _assert_grows_to_the_outline(image, cam, circle, start, locks_below):
     assert grown["chrome"]
 
 
-def _mirror_on_a_plate(plate_scale: float):
-    """A chrome sphere (true circle ``(cx, cy, r)``) on a dark plate of broken outline (floor
-    dots), ``plate_scale`` times its radius and 3 px higher, as an 8-bit image: returns
-    ``(image, cam, (cx, cy, r), plate)``."""
+def _mirror_over(background):
+    """The test chrome sphere over a linear ``background(xs, ys, (cx, cy, r))`` (pixel-centre
+    grids and the sphere's true circle -> values), blurred like the sphere, as an 8-bit image:
+    returns ``(image, cam, (cx, cy, r))``."""
     cam = pg.Camera.from_fov(W, H, FOV_DEG)
     sphere = _sphere_at(cam, 80.0, 62.0, 5.0)
-    cx, cy, r = detect.outline_circle(cam, sphere)
+    circle = detect.outline_circle(cam, sphere)
     to_light = np.array([0.3, 0.4, 0.87])
     # linear in the background: the sphere over any background is i0 + background (i1 - i0)
     i0 = _render(cam, sphere, to_light, background=0.0, clip=False)
     i1 = _render(cam, sphere, to_light, background=1.0, clip=False)
-    plate = (cx, cy - 3.0, plate_scale * r)
     ys, xs = np.mgrid[0:H, 0:W] + 0.5
-    dots = np.sin(6.0 * np.arctan2(ys - plate[1], xs - plate[0])) > 0.5
-    background = np.where((np.hypot(xs - plate[0], ys - plate[1]) < plate[2]) & dots, 0.05, 0.35)
-    background = ndimage.gaussian_filter(background, 0.6)[..., None]
-    return _quantise(np.clip(i0 + background * (i1 - i0), 0.0, 1.0)), cam, (cx, cy, r), plate
+    back = ndimage.gaussian_filter(background(xs, ys, circle), 0.6)[..., None]
+    return _quantise(np.clip(i0 + back * (i1 - i0), 0.0, 1.0)), cam, circle
+
+
+def _mirror_on_a_plate(plate_scale: float):
+    """A chrome sphere (true circle ``(cx, cy, r)``) on a dark plate of broken outline (floor
+    dots), ``plate_scale`` times its radius and 3 px higher, as an 8-bit image: returns
+    ``(image, cam, (cx, cy, r), plate)``."""
+    def plate_of(circle):
+        return (circle[0], circle[1] - 3.0, plate_scale * circle[2])
+
+    def background(xs, ys, circle):
+        px, py, pr = plate_of(circle)
+        dots = np.sin(6.0 * np.arctan2(ys - py, xs - px)) > 0.5
+        return np.where((np.hypot(xs - px, ys - py) < pr) & dots, 0.05, 0.35)
+    image, cam, circle = _mirror_over(background)
+    return image, cam, circle, plate_of(circle)
 
 
 _RIM_FIT_ON_A_PLATE = """

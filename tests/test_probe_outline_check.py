@@ -124,20 +124,17 @@ def _mirror_with_a_shadow(scale: float):
     """The test sphere on a lit floor (0.35) with its cast shadow (0.05) beside its lower
     half: a disc ``scale`` times its radius whose top nearly touches the sphere's, as an
     8-bit image; returns ``(image, cam, true circle, shadow circle)``."""
-    from scipy import ndimage
-    from relight.probe import geometry as pg
-    from test_probe_hard import FOV_DEG, H, W, _quantise, _render, _sphere_at
-    cam = pg.Camera.from_fov(W, H, FOV_DEG)
-    sphere = _sphere_at(cam, 80.0, 62.0, 5.0)
-    cx, cy, r = detect.outline_circle(cam, sphere)
-    to_light = np.array([0.3, 0.4, 0.87])
-    i0 = _render(cam, sphere, to_light, background=0.0, clip=False)
-    i1 = _render(cam, sphere, to_light, background=1.0, clip=False)
-    shadow = (cx + 0.3 * (scale - 1.0) * r, cy + 0.95 * (scale - 1.0) * r, scale * r)
-    ys, xs = np.mgrid[0:H, 0:W] + 0.5
-    floor = np.where((np.hypot(xs - shadow[0], ys - shadow[1]) < shadow[2]) & (ys > cy), 0.05, 0.35)
-    floor = ndimage.gaussian_filter(floor, 0.6)[..., None]
-    return _quantise(np.clip(i0 + floor * (i1 - i0), 0.0, 1.0)), cam, (cx, cy, r), shadow
+    from test_probe_hard import _mirror_over
+
+    def shadow_of(circle):
+        cx, cy, r = circle
+        return (cx + 0.3 * (scale - 1.0) * r, cy + 0.95 * (scale - 1.0) * r, scale * r)
+
+    def floor(xs, ys, circle):
+        sx, sy, sr = shadow_of(circle)
+        return np.where((np.hypot(xs - sx, ys - sy) < sr) & (ys > circle[1]), 0.05, 0.35)
+    image, cam, circle = _mirror_over(floor)
+    return image, cam, circle, shadow_of(circle)
 
 
 def test_a_cast_shadows_circle_gives_way_to_the_sphere_the_check_finds():
