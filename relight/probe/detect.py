@@ -724,7 +724,6 @@ def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = N
     if outline_check is not None:
         out = [_checked_outline(image, camera, c, smoothed, clip_level, outline_check) if c["chrome"] else c
                for c in out]
-        _note_check_gaps(out, outline_check)
     for c in out:     # does its brightest spot look like a small light's highlight?
         c["highlight"] = highlight_likelihood(image, camera, c["sphere"]) if c["chrome"] else -10.0
     out = _drop_inner_circles(out)
@@ -733,17 +732,13 @@ def find_spheres(image: np.ndarray, camera: Camera, clip_level: float | None = N
     return out
 
 
-def _note_check_gaps(out: list[dict], check) -> None:
-    """Give each chrome candidate its ``check_gap``: how far from it the learned outline
-    check, seen from it, puts the sphere's circle (:func:`_circle_gap`); None where the check
-    has no opinion (it returns a circle it cannot judge as it went in)."""
-    chrome = [c for c in out if c["chrome"]]
-    if not chrome:
-        return
-    seen = np.asarray(check([c["circle"] for c in chrome]), np.float64).reshape(-1, 3)
-    for c, s in zip(chrome, seen):
-        same = all(float(a) == float(b) for a, b in zip(c["circle"], s))
-        c["check_gap"] = None if same else _circle_gap(c["circle"], s)
+def _check_gap(circle, seen) -> float | None:
+    """How far from ``circle`` the learned outline check, asked from it, puts the sphere's
+    circle ``seen`` (:func:`_circle_gap`); None when it has no opinion (it returns a circle it
+    cannot judge as it went in)."""
+    if all(float(a) == float(b) for a, b in zip(circle, seen)):
+        return None
+    return _circle_gap(circle, seen)
 
 
 def _check_prefers(a: dict, b: dict) -> bool:
@@ -872,9 +867,12 @@ def _checked_outline(image: np.ndarray, camera: Camera, cand: dict, smoothed: np
     the check, asked again from it, finds it nearer to where it belongs than the candidate
     was (an edge fit started on the contact shadow's circle stays there; started from the
     sphere, it keeps to the sphere). It keeps the better of the two edge supports, the
-    pair's evidence (as a grown outline keeps its inner circle's)."""
+    pair's evidence (as a grown outline keeps its inner circle's). Either way the one
+    returned holds its ``check_gap`` (:func:`_check_gap`), which judges nested circles
+    (:func:`_drop_inner_circles`); ``cand`` is given its own."""
     first = check([cand["circle"]])[0]
-    if _circle_gap(cand["circle"], first) <= CHECK_MOVE:
+    gap = cand["check_gap"] = _check_gap(cand["circle"], first)
+    if gap is None or gap <= CHECK_MOVE:
         return cand
     try:
         guess = sphere_from_circle(camera, *first)
@@ -883,14 +881,18 @@ def _checked_outline(image: np.ndarray, camera: Camera, cand: dict, smoothed: np
         return cand
     sphere = outer_rim_fit(smoothed, camera, sphere)
     circle = outline_circle(camera, sphere)
-    if support < MIN_EDGE_SUPPORT or _circle_gap(circle, check([circle])[0]) >= _circle_gap(cand["circle"], first):
+    if support < MIN_EDGE_SUPPORT:
+        return cand
+    again = check([circle])[0]
+    if _circle_gap(circle, again) >= gap:
         return cand
     f = sphere_features(image, camera, sphere, clip_level)
     if not is_chrome(f):
         return cand
     # the pair's evidence, as a grown outline's: the better supported of the two stays
     return {**cand, **f, "sphere": sphere, "circle": circle, "edge_support": max(support, cand["edge_support"]),
-            "chrome": True, "diffuse": is_diffuse(f), "checked_from": cand["circle"]}
+            "chrome": True, "diffuse": is_diffuse(f), "checked_from": cand["circle"],
+            "check_gap": _check_gap(circle, again)}
 
 
 def outer_rim_fit(smoothed: np.ndarray, camera: Camera, sphere: Sphere) -> Sphere:

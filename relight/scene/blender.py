@@ -415,15 +415,21 @@ def _repo_root() -> str:
     return os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
+def _bpy_env() -> dict:
+    """The environment of a child in the bpy environment: this checkout of relight first on
+    its path, marked to end with this process (:func:`relight.children.child_env`)."""
+    env = child_env()
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (_repo_root(), env.get("PYTHONPATH")) if p)
+    return env
+
+
 def run_blender_module(args: list[str], python: str | None = None, **kwargs) -> subprocess.CompletedProcess:
     """Run ``python -m relight.scene.blender ARGS`` in the bpy environment (this checkout of
     relight on its path); :class:`BlenderError` if there is none."""
     python = python or blender_python()
     if python is None:
         raise BlenderError(INSTALL_HINT)
-    env = child_env()
-    env["PYTHONPATH"] = os.pathsep.join(p for p in (_repo_root(), env.get("PYTHONPATH")) if p)
-    return subprocess.run([python, "-m", "relight.scene.blender", *args], env=env, **kwargs)
+    return subprocess.run([python, "-m", "relight.scene.blender", *args], env=_bpy_env(), **kwargs)
 
 
 class CyclesWorker:
@@ -438,12 +444,10 @@ class CyclesWorker:
         if python is None:
             raise BlenderError(INSTALL_HINT)
         self._tmp = tempfile.TemporaryDirectory(prefix="relight-cycles-")
-        env = child_env()
-        env["PYTHONPATH"] = os.pathsep.join(p for p in (_repo_root(), env.get("PYTHONPATH")) if p)
         cmd = [python, "-m", "relight.scene.blender", "worker"]
         if threads is not None:
             cmd += ["--threads", str(int(threads))]
-        self._proc = subprocess.Popen(cmd, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+        self._proc = subprocess.Popen(cmd, env=_bpy_env(), stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                       text=True, bufsize=1)
         self._n = 0
         hello = self._proc.stdout.readline()
