@@ -98,16 +98,10 @@ def main() -> None:
                     help="train on the first N scenes (by name)")
     ap.add_argument("--augment", type=at.float_in(0.0, 1.0, "a probability"), default=0.5,
                     help="share of training images drawn through a camera pipeline from their linear EXR")
-    ap.add_argument("--save", help="write the trained weights here (safetensors; refuses to overwrite "
-                                   "without --force)")
-    ap.add_argument("--force", action="store_true", help="overwrite --save")
-    ap.add_argument("--load", help="judge these weights instead of training")
+    at.add_weights_options(ap)
     ap.add_argument("--probe", action="store_true", help="also the direction with its circle given")
     args = ap.parse_args()
-    if bool(args.train) == bool(args.load):
-        raise SystemExit("give --train FOLDER or --load WEIGHTS")
-    if args.save and os.path.exists(args.save) and not args.force:
-        raise SystemExit(f"{args.save} exists (give --force to replace it)")
+    at.checked_weights_options(args, args.train)
     import torch
 
     from relight.net.augment import PipelineAugment   # the photo pipeline's ranges
@@ -129,12 +123,9 @@ def main() -> None:
                             linear=linear, augment_p=args.augment, ranges=PipelineAugment(),
                             progress=lambda m: print(f"{m} ({time.time() - t0:.0f} s)", flush=True))
         if args.save:
-            from relight.fileio import atomic_write
-            from safetensors.torch import save_file
-            meta = {"scenes": str(len(items)), "first": os.path.basename(items[0][0]),
-                    "last": os.path.basename(items[-1][0]), "epochs": str(args.epochs), "augment": str(args.augment)}
-            state = {k: v.contiguous() for k, v in net.state_dict().items()}
-            atomic_write(args.save, lambda tmp: save_file(state, tmp, metadata=meta))
+            locator.save_weights(net, args.save, {"scenes": len(items), "first": os.path.basename(items[0][0]),
+                                                  "last": os.path.basename(items[-1][0]), "epochs": args.epochs,
+                                                  "augment": args.augment})
             path = args.save
     for folder in args.test:
         if path is None:

@@ -87,15 +87,9 @@ def main() -> None:
                     help="candidate circles drawn per scene")
     ap.add_argument("--augment", type=at.float_in(0.0, 1.0, "a probability"), default=0.5,
                     help="share of candidates cropped from the linear EXR through a camera pipeline")
-    ap.add_argument("--save", help="write the trained weights here (safetensors; refuses to overwrite "
-                                   "without --force)")
-    ap.add_argument("--force", action="store_true", help="overwrite --save")
-    ap.add_argument("--load", help="judge these weights instead of training")
+    at.add_weights_options(ap)
     args = ap.parse_args()
-    if bool(args.train) == bool(args.load):
-        raise SystemExit("give --train FOLDER or --load WEIGHTS")
-    if args.save and os.path.exists(args.save) and not args.force:
-        raise SystemExit(f"{args.save} exists (give --force to replace it)")
+    at.checked_weights_options(args, args.train)
     import torch
 
     from relight.net.augment import PipelineAugment   # the photo pipeline's ranges
@@ -118,13 +112,10 @@ def main() -> None:
         net = oc.train(crops, targets, args.epochs,
                        progress=lambda m: print(f"{m} ({time.time() - t0:.0f} s)", flush=True))
         if args.save:
-            from relight.fileio import atomic_write
-            from safetensors.torch import save_file
-            meta = {"scenes": str(len(items)), "first": os.path.basename(used[0]),
-                    "last": os.path.basename(used[-1]), "epochs": str(args.epochs),
-                    "per_scene": str(args.per_scene), "augment": str(args.augment)}
-            state = {k: v.contiguous() for k, v in net.state_dict().items()}
-            atomic_write(args.save, lambda tmp: save_file(state, tmp, metadata=meta))
+            from relight.probe.locator import save_weights
+            save_weights(net, args.save, {"scenes": len(items), "first": os.path.basename(used[0]),
+                                          "last": os.path.basename(used[-1]), "epochs": args.epochs,
+                                          "per_scene": args.per_scene, "augment": args.augment})
             path = args.save
             oc.load_check.cache_clear()
     for folder in args.test:

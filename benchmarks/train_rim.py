@@ -198,15 +198,9 @@ def main() -> None:
                     help="also train on this many distant rooms (seeds 0..N-1, drawn here, nothing stored)")
     ap.add_argument("--test-rooms", type=at.int_in(0, 10 ** 6, "a count"), default=0,
                     help="judge on this many distant rooms (seeds from 1,000,000)")
-    ap.add_argument("--save", help="write the trained weights here (safetensors; refuses to overwrite "
-                                   "without --force)")
-    ap.add_argument("--force", action="store_true", help="overwrite --save")
-    ap.add_argument("--load", help="judge these weights instead of training")
+    at.add_weights_options(ap)
     args = ap.parse_args()
-    if bool(args.train) == bool(args.load):
-        raise SystemExit("give --train FOLDER... or --load WEIGHTS")
-    if args.save and os.path.exists(args.save) and not args.force:
-        raise SystemExit(f"{args.save} exists (give --force to replace it)")
+    at.checked_weights_options(args, args.train, "FOLDER...")
     import torch
     from tqdm import tqdm
 
@@ -232,13 +226,10 @@ def main() -> None:
         net = rim.train(x[keep], y[keep], args.epochs,
                         progress=lambda m: print(f"{m} ({time.time() - t0:.0f} s)", flush=True))
         if args.save:
-            from safetensors.torch import save_file
-
-            from relight.fileio import atomic_write
-            meta = {"renders": str(len(items)), "lines": str(int(keep.sum())), "epochs": str(args.epochs),
-                    "copies": str(args.copies), "folders": " ".join(os.path.basename(f.rstrip("/")) for f in args.train)}
-            state = {k: v.contiguous() for k, v in net.state_dict().items()}
-            atomic_write(args.save, lambda tmp: save_file(state, tmp, metadata=meta))
+            from relight.probe.locator import save_weights
+            save_weights(net, args.save, {"renders": len(items), "lines": int(keep.sum()), "epochs": args.epochs,
+                                          "copies": args.copies, "rooms": args.rooms,
+                                          "folders": " ".join(os.path.basename(f.rstrip("/")) for f in args.train)})
             path = args.save
             rim.load_rim.cache_clear()
     if (args.test or args.test_rooms) and path is None:

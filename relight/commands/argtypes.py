@@ -13,12 +13,13 @@ __all__ = [
     "spp", "max_depth", "seed", "threads", "loader_workers", "count", "limit", "columns", "epochs",
     "batch_size", "patience", "width", "iterations", "learning_rate", "seconds", "minutes", "relative_rmse",
     "light_pan", "light_tilt", "field_of_view", "object_parts",
-    "add_mirror_option", "add_model_option", "model_help", "bounded_rgb", "loss_weights",
+    "add_mirror_option", "add_weights_options", "checked_weights_options", "add_model_option", "model_help", "bounded_rgb", "loss_weights",
     "circle", "OneLineParser", "run_script",
 ]
 
 import argparse
 import math
+import os
 
 
 def _number(text: str, kind=float):
@@ -153,6 +154,24 @@ def add_mirror_option(parser) -> None:
     parser.add_argument("--mirror-average", action="store_true",
                         help="also run each image's left-right mirror image and average the two "
                              "predictions (lower errors, about 1.8x the time)")
+
+
+def add_weights_options(parser) -> None:
+    """``--save`` / ``--force`` / ``--load`` of a script that trains a small network or judges
+    trained weights (the probe's learned networks); :func:`checked_weights_options` checks them."""
+    parser.add_argument("--save", help="write the trained weights here (safetensors; refuses to overwrite "
+                                       "without --force)")
+    parser.add_argument("--force", action="store_true", help="overwrite --save")
+    parser.add_argument("--load", help="judge these weights instead of training")
+
+
+def checked_weights_options(args, train, what: str = "FOLDER") -> None:
+    """One line and exit 2 (SystemExit) unless exactly one of ``train`` (the training
+    data given) and ``--load`` is, or when ``--save`` would overwrite a file without ``--force``."""
+    if bool(train) == bool(args.load):
+        raise SystemExit(f"give --train {what} or --load WEIGHTS")
+    if args.save and os.path.exists(args.save) and not args.force:
+        raise SystemExit(f"{args.save} exists (give --force to replace it)")
 
 
 def model_help(default: bool = True) -> str:

@@ -41,6 +41,7 @@ __all__ = [
     "judges",
     "load_locator",
     "load_weights",
+    "save_weights",
     "locate",
     "network_input",
     "train",
@@ -88,6 +89,17 @@ def load_weights(net, path: str, name: str, script: str):
     except Exception as exc:   # a truncated or foreign file: one line, not a traceback
         raise ProbeError(f"{path}: not the {name}'s weights ({type(exc).__name__})") from None
     return net.eval()
+
+
+def save_weights(net, path: str, meta: dict) -> None:
+    """``net``'s weights to a safetensors file with ``meta`` (strings) as its metadata,
+    written whole or not at all (:func:`relight.fileio.atomic_write`). Shared by the
+    scripts that train the probe's learned networks; :func:`load_weights` reads them."""
+    from safetensors.torch import save_file
+
+    from relight.fileio import atomic_write
+    state = {k: v.contiguous() for k, v in net.state_dict().items()}
+    atomic_write(path, lambda tmp: save_file(state, tmp, metadata={k: str(v) for k, v in meta.items()}))
 
 
 @functools.lru_cache(maxsize=2)
