@@ -1204,16 +1204,6 @@ def _two_mirrors(tmp_path):
     return path, cam, left, right, l1, l2
 
 
-def _read_outline(path, cam, rim_fit, shift_px):
-    """The outline the detector reports for a chrome candidate fitted at ``rim_fit``: read
-    across its rim (relight.probe.rim), the fit moved out by the image's rim shift where
-    the reading is not trusted."""
-    from relight.probe import rim
-    smoothed = detect.edge_image(detect.read_probe_image(path)[0], 1.0)
-    return pg.outline_circle(cam, rim.read_outline(smoothed, cam, rim_fit,
-                                                   detect.outline_from_rim(cam, rim_fit, shift_px))[0])
-
-
 def _candidate(cam, sphere, support):
     return {"sphere": sphere, "circle": pg.outline_circle(cam, sphere), "chrome": True, "diffuse": False,
             "edge_support": support, "contrast": 10.0, "highlight": 0.0}
@@ -1240,12 +1230,12 @@ def test_a_rival_circle_scoring_nearly_as_well_widens_the_uncertainty(tmp_path, 
     assert det["ambiguity"] == pytest.approx(0.5, abs=0.01)     # (the radius term differs a little)
     assert abs(det["separation_deg"] - _angle(l1, l2)) < 3.0
     assert _angle(det["alternative_to_light_camera"], l2) < 3.0
-    # (both outlines are read across the rims fitted, relight.probe.rim)
-    assert entry["chrome_rim_shift_px"] > 0 and entry["chrome_outline_read"] is True
-    assert np.allclose(det["alternative_circle"], _read_outline(path, cam, right, entry["chrome_rim_shift_px"]),
-                       atol=1e-2)
-    assert np.allclose(entry["chrome_circle"], _read_outline(path, cam, left, entry["chrome_rim_shift_px"]),
-                       atol=1e-2)
+    # (both outlines are the rims' fits moved out by the image's rim shift, detect.chrome_rim_shift_px)
+    assert entry["chrome_rim_shift_px"] > 0
+    rival = detect.outline_from_rim(cam, right, entry["chrome_rim_shift_px"])
+    assert np.allclose(det["alternative_circle"], pg.outline_circle(cam, rival), atol=1e-2)
+    assert np.allclose(entry["chrome_circle"], pg.outline_circle(
+        cam, detect.outline_from_rim(cam, left, entry["chrome_rim_shift_px"])), atol=1e-2)
     assert budget["detection_deg"] == pytest.approx(det["ambiguity"] * det["separation_deg"], abs=0.01)
     assert entry["quality_deg"] == pytest.approx(math.hypot(budget["circle_deg"], budget["highlight_deg"],
                                                             budget["camera_deg"], budget["detection_deg"]), abs=0.01)
@@ -1270,5 +1260,5 @@ def test_the_command_names_the_rival_circle(tmp_path, monkeypatch, capsys):
     with open(out) as f:
         entry = json.load(f)["predictions"][0]
     assert "detection" in entry
-    cx, cy, r = _read_outline(path, cam, right, entry["chrome_rim_shift_px"])
+    cx, cy, r = pg.outline_circle(cam, detect.outline_from_rim(cam, right, entry["chrome_rim_shift_px"]))
     assert f"note: another circle, ({cx:.1f}, {cy:.1f}) r {r:.1f}" in capsys.readouterr().out

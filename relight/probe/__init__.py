@@ -16,9 +16,6 @@ a chrome sphere's highlight gives the direction, a gray sphere's shading the col
 * :mod:`relight.probe.outline_check`: a second small network that, shown one candidate
   circle, says where the chrome sphere's circle lies relative to it: a second start for
   the detector's edge fit (a sphere's contact shadow draws a larger circle beside it).
-* :mod:`relight.probe.rim`: a third that reads, on each line across a chrome outline's
-  rim, where the outline lies: the found outline fitted to those points (a mirror's rim
-  shows the reflection's edge, not its own, some tenths of a pixel inside).
 * :mod:`relight.probe.run`: ``relight probe`` as one library call, with the QA overlay.
 * :mod:`relight.probe.batch`: a folder of photographs with each image's circles from a CSV.
 
@@ -27,5 +24,5 @@ photographs) is docs/probe.md.
 """
 
 __all__ = [
-    "detect", "footprint", "geometry", "locator", "ortho", "outline_check", "rim", "run",
+    "detect", "footprint", "geometry", "locator", "ortho", "outline_check", "run",
 ]

@@ -28,7 +28,7 @@ __all__ = [
     "outline_fit_px", "constrained_refinement", "GROW_RADII", "GROW_FINE_RADII", "GROW_MIN_SUPPORT_RATIO", "GROW_ROUNDS",
     "PICK_HIGHLIGHT_WEIGHT", "PICK_RADIUS_WEIGHT", "CHROME_INSIDE_PX", "ON_OUTLINE_PX", "RIM_FIT_ROUNDS", "RIM_FIT_SETTLED_PX", "outer_rim_fit", "DETECTION_MARGIN",
     "rival_sphere", "share_the_rest", "CHROME_RIM_SHIFT", "PIXEL_BLUR_PX", "edge_blur_px", "chrome_rim_shift_px",
-    "outline_from_rim", "edge_image", "radial_samples",
+    "outline_from_rim",
 ]
 
 import math
@@ -149,12 +149,6 @@ def _edge_image(image: np.ndarray) -> np.ndarray:
     lin = _exposed_for_edges(image)
     sigma = edge_sigma_px(lin)
     return ndimage.gaussian_filter(lin, (sigma, sigma, 0))
-
-
-def edge_image(image: np.ndarray, clip_level: float | None) -> np.ndarray:
-    """The smoothed linear image in which automatic detection locates outlines
-    (:func:`_edge_image` of :func:`detection_view`)."""
-    return _edge_image(detection_view(image, clip_level)[0])
 
 
 def _exposed_for_edges(image: np.ndarray) -> np.ndarray:
@@ -301,19 +295,6 @@ def edge_points(smoothed: np.ndarray, camera: Camera, guess: Sphere, band_px: fl
     x = cx + radius * np.cos(theta)
     y = cy + radius * np.sin(theta)
     return x[ok], y[ok], strength[ok]
-
-
-def radial_samples(smoothed: np.ndarray, camera: Camera, sphere: Sphere, offsets: np.ndarray, angles: int):
-    """``smoothed`` (H, W, C) along ``angles`` radial lines from the centre of ``sphere``'s
-    outline, at ``offsets`` px from the outline (+ outside), by cubic spline
-    (:func:`_spline_samples`): ``(samples (angles, len(offsets), C), cx, cy, theta, r_theta)``,
-    the outline's centre, each line's angle and the outline's radius along it."""
-    theta = np.linspace(-np.pi, np.pi, angles, endpoint=False)
-    cx, cy, r_theta = _polar_outline(camera, sphere, theta)
-    s = r_theta[:, None] + np.asarray(offsets, np.float64)[None, :]
-    xs = cx + s * np.cos(theta)[:, None]
-    ys = cy + s * np.sin(theta)[:, None]
-    return _spline_samples(smoothed, xs, ys), cx, cy, theta, r_theta
 
 
 def _spline_samples(image: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from relight.probe import detect, rim
+from relight.probe import detect
 from relight.probe import geometry as geom
 from relight.probe.geometry import Camera, ProbeError, Sphere
 
@@ -93,10 +93,8 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
     outline then fits the edges better than the given circle
     (:func:`relight.probe.detect.constrained_refinement`); ``refinement`` reports it.
     A chrome sphere's rim edges lie inside its outline (it mirrors what lies behind it):
-    a detected chrome outline is read across the rim the circle was fitted to
-    (:func:`relight.probe.rim.read_outline`; ``outline_read`` in the report, False where
-    the reading was not trusted and the fitted circle moved out by
-    :func:`relight.probe.detect.chrome_rim_shift_px` stands instead), and a given circle's refinement
+    a detected chrome outline is the circle fitted to them moved out by
+    :func:`relight.probe.detect.chrome_rim_shift_px`, and a given circle's refinement
     fits the outline those edges imply (``rim_shift_px`` in the report), by the fit a
     detected chrome outline ends with (:func:`relight.probe.detect.outer_rim_fit`).
     A detected chrome sphere's ``refinement`` holds the detection's ``ambiguity`` (0-1) and
@@ -112,10 +110,10 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
         geom.bounding_box(camera, guess)
         if not refine or tolerance_px <= 0:
             return guess, None, "circle", {"tolerance_px": 0.0, "accepted": False}
-        shift = detect.chrome_rim_shift_px(image) if kind == "chrome" else 0.0
-        sphere, report = detect.constrained_refinement(image, camera, circle, tolerance_px, shift, kind == "chrome")
-        if shift:
-            report["rim_shift_px"] = round(shift, 4)
+        rim = detect.chrome_rim_shift_px(image) if kind == "chrome" else 0.0
+        sphere, report = detect.constrained_refinement(image, camera, circle, tolerance_px, rim, kind == "chrome")
+        if rim:
+            report["rim_shift_px"] = round(rim, 4)
         how = "circle refined on edges" if report["accepted"] else "circle (as given)"
         return sphere, None, how, report
     if candidates is None:
@@ -148,20 +146,15 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
     if "checked_from" in found:   # the outline the learned outline check moved it from
         report["checked_from"] = found["checked_from"]
     rival, margin = detect.rival_sphere(candidates, found, kind, exclude) if kind == "chrome" else (None, 0.0)
-    sphere = found["sphere"]
-    if kind == "chrome":   # the outline, read across the rim its edges were fitted to (relight.probe.rim)
-        rim_shift = detect.chrome_rim_shift_px(detect.detection_view(image, clip_level)[0])
-        report["rim_shift_px"] = round(rim_shift, 4)
-        smoothed = detect.edge_image(image, clip_level)
-
-        def outline(rim_fit: Sphere) -> tuple[Sphere, bool]:
-            return rim.read_outline(smoothed, camera, rim_fit, detect.outline_from_rim(camera, rim_fit, rim_shift))
-        sphere, report["outline_read"] = outline(sphere)
+    rim = 0.0
+    if kind == "chrome":   # the outline, from the circle fitted to the rim's edges (detect.chrome_rim_shift_px)
+        rim = detect.chrome_rim_shift_px(detect.detection_view(image, clip_level)[0])
+        report["rim_shift_px"] = round(rim, 4)
     if rival is not None and margin < detect.DETECTION_MARGIN:
         # another circle scores nearly as well: the detection is ambiguous (see run_probe)
         report.update(ambiguity=1.0 - margin / detect.DETECTION_MARGIN,
-                      rival=outline(rival["sphere"])[0])   # (a rival is a chrome sphere's only)
-    return sphere, None, "detected", report
+                      rival=detect.outline_from_rim(camera, rival["sphere"], rim))
+    return detect.outline_from_rim(camera, found["sphere"], rim), None, "detected", report
 
 
 def run_probe(cfg: ProbeConfig) -> ProbeResult:
@@ -203,7 +196,6 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
         entry["chrome_found_by"] = found
         if found == "detected":
             entry["chrome_rim_shift_px"] = refinement["rim_shift_px"]
-            entry["chrome_outline_read"] = refinement["outline_read"]
             if "locator_circle" in refinement:
                 p = refinement.get("locator_probability")   # None: a circle too large for it to judge
                 entry["locator"] = {"circle": [round(v, 2) for v in refinement["locator_circle"]],
