@@ -101,7 +101,7 @@ def main() -> None:
     at.add_weights_options(ap)
     ap.add_argument("--probe", action="store_true", help="also the direction with its circle given")
     args = ap.parse_args()
-    at.checked_weights_options(args, args.train)
+    at.checked_weights_options(ap, args, args.train)
     import torch
 
     from relight.net.augment import PipelineAugment   # the photo pipeline's ranges

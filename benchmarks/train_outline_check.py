@@ -89,7 +89,7 @@ def main() -> None:
                     help="share of candidates cropped from the linear EXR through a camera pipeline")
     at.add_weights_options(ap)
     args = ap.parse_args()
-    at.checked_weights_options(args, args.train)
+    at.checked_weights_options(ap, args, args.train)
     import torch
 
     from relight.net.augment import PipelineAugment   # the photo pipeline's ranges

@@ -1102,3 +1102,30 @@ def test_no_test_compares_committed_floats_exactly():
     old = ("    legacy = load_scene(LEGACY_SCENE)\n    new = sample_scene(cfg, 2024, 5)\n"
            "    assert new.room == legacy.room and new.objects == legacy.objects\n")
     assert _exact_comparisons_with_committed(old)   # the line that failed on another CPU
+
+
+@pytest.mark.parametrize("argv, message", [
+    ([], "give --train FOLDER or --load WEIGHTS"),                        # neither
+    (["--train", "d", "--load", "w.safetensors"], "give --train FOLDER or --load WEIGHTS"),   # both
+    (["--train", "d", "--save", "{weights}"], "exists (give --force to replace it)"),         # would overwrite
+])
+def test_a_training_scripts_weights_options_are_one_line_errors_and_leave_the_weights(argv, message, tmp_path,
+                                                                                      capsys):
+    # the probe's training scripts (benchmarks/train_locator.py, train_outline_check.py) check
+    # their --train / --load / --save / --force so: one line on stderr, exit 2, the file as it was
+    from relight.commands import argtypes
+    weights = tmp_path / "w.safetensors"
+    weights.write_bytes(b"trained")
+    ap = argtypes.OneLineParser(prog="train")
+    ap.add_argument("--train", nargs="*", default=[])
+    argtypes.add_weights_options(ap)
+    args = ap.parse_args([a.format(weights=weights) for a in argv])
+    with pytest.raises(SystemExit) as exc:
+        argtypes.checked_weights_options(ap, args, args.train)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("train: error: ") and message in err
+    assert weights.read_bytes() == b"trained"
+    # with --force the same overwrite is allowed
+    args = ap.parse_args(["--train", "d", "--save", str(weights), "--force"])
+    argtypes.checked_weights_options(ap, args, args.train)

@@ -165,13 +165,14 @@ def add_weights_options(parser) -> None:
     parser.add_argument("--load", help="judge these weights instead of training")
 
 
-def checked_weights_options(args, train, what: str = "FOLDER") -> None:
-    """One line and exit 2 (SystemExit) unless exactly one of ``train`` (the training
+def checked_weights_options(parser, args, train) -> None:
+    """The options of :func:`add_weights_options` checked: a one-line error and exit 2
+    (``parser.error``; :class:`OneLineParser`) unless exactly one of ``train`` (the training
     data given) and ``--load`` is, or when ``--save`` would overwrite a file without ``--force``."""
     if bool(train) == bool(args.load):
-        raise SystemExit(f"give --train {what} or --load WEIGHTS")
+        parser.error("give --train FOLDER or --load WEIGHTS")
     if args.save and os.path.exists(args.save) and not args.force:
-        raise SystemExit(f"{args.save} exists (give --force to replace it)")
+        parser.error(f"{args.save} exists (give --force to replace it)")
 
 
 def model_help(default: bool = True) -> str:
