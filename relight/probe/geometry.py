@@ -75,6 +75,8 @@ BLUR_TAIL_SHARE = 0.05         # ... the pixels touching it no further, at the m
                                # from the level around them to the clip (else a blur surrounds it)
 MIRROR_SHARE = 0.25            # beside a clipped core, a pixel whose mirror image holds under 25% of it is not the light
 DOWNHILL_MARGIN = 0.05         # a highlight's blur pixel has no neighbour outside it brighter by 5% of its peak
+RIM_LIGHT_RATIO = 2.0          # the rim band holds the light when it is this much brighter than the interior (or clips
+                               # where the interior does not)
 
 
 @dataclass(frozen=True)
@@ -479,6 +481,8 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     if usable.sum() < 5:
         raise ProbeError("the chrome sphere is too small or hidden (fewer than 5 usable pixels)")
     crop = lum[y0:y1, x0:x1]
+    usable = usable | _rim_light(crop, usable, s, None if mask is None else np.asarray(mask, bool)[y0:y1, x0:x1],
+                                 clip_level)
     values = crop[usable]
     peak = float(values.max())
     floor = float(np.median(values))
@@ -574,6 +578,40 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     quality["error_budget_deg"] = {k: round(v, 3) for k, v in budget.items()}
     quality["uncertainty_deg"] = budget["total_deg"]
     return Highlight(to_light, (px, py), quality)
+
+
+def _rim_light(crop: np.ndarray, usable: np.ndarray, s: dict, mask: np.ndarray | None,
+               clip_level: float | None) -> np.ndarray:
+    """The rim band's pixels (on the sphere within :data:`RIM_EXCLUDE_PX` of its outline,
+    which the search leaves out) that hold the light: a light behind the sphere puts its
+    highlight at the rim, and an outline fitted a pixel small (a mirror's rim shows what
+    lies right behind it, so its edge can lie that far inside) leaves all of it in the
+    band, the search then choosing a dim reflection inside. They count when the band's
+    brightest pixels stand :data:`RIM_LIGHT_RATIO` above everything inside (or clip where
+    nothing inside does) and are the sphere's own: continued past the outline through
+    pixels as bright (within :data:`TIE_FRACTION` of them where they clip, else half),
+    they still form a disc (the blur spreads a light across the outline as much as
+    inward); a bright wall, or the light itself, seen right behind the sphere runs along
+    the outline instead. Empty otherwise."""
+    none = np.zeros(crop.shape, bool)
+    band = s["hit"] & ~usable & (s["cos_view"] > 0)
+    if mask is not None:
+        band &= mask
+    if not band.any() or not usable.any():
+        return none
+    inner, top = float(crop[usable].max()), float(crop[band].max())
+    clipped = clip_level is not None and top >= CLIPS_AT * clip_level
+    if clip_level is not None and inner >= CLIPS_AT * clip_level:
+        return none
+    if not (clipped or top >= RIM_LIGHT_RATIO * inner):
+        return none
+    blobs, n = ndimage.label(band & (crop >= TIE_FRACTION * top), np.ones((3, 3)))
+    light = none.copy()
+    for k in range(1, n + 1):
+        blob = blobs == k
+        if _disc_like(_core_into_rim(crop, blob, ~s["hit"], TIE_FRACTION if clipped else HIGHLIGHT_FRACTION)):
+            light |= blob
+    return light
 
 
 def _clipped_footprint_centre(camera: Camera, sphere: Sphere, crop: np.ndarray, core: np.ndarray,
@@ -685,10 +723,11 @@ def _disc_like(blob: np.ndarray, max_elongation: float = 1.5, max_excess: float 
             and ys.size <= (1.0 + max_excess) * 4.0 * math.pi * math.sqrt(ev[0] * ev[1]))
 
 
-def _core_into_rim(crop: np.ndarray, core: np.ndarray, rim_band: np.ndarray) -> np.ndarray:
-    """``core`` grown through connected ``rim_band`` pixels at least :data:`TIE_FRACTION` of
-    the core's brightest pixel (the light's core continued where the search does not look)."""
-    level = TIE_FRACTION * float(crop[core].max())
+def _core_into_rim(crop: np.ndarray, core: np.ndarray, rim_band: np.ndarray,
+                   fraction: float = TIE_FRACTION) -> np.ndarray:
+    """``core`` grown through connected ``rim_band`` pixels at least ``fraction`` of the
+    core's brightest pixel (the light's core continued where the search does not look)."""
+    level = fraction * float(crop[core].max())
     grown = np.asarray(core, bool).copy()
     square = np.ones((3, 3), bool)
     while True:
@@ -887,15 +926,18 @@ def error_budget(camera: Camera, sphere: Sphere, q: dict, circle_px: float | Non
       the axis (orthographic: 0, the far camera taken as exact);
 
     each position error turned into a normal error on a sphere of radius ``r_px``,
-    doubled by the reflection and stretched by foreshortening. ``total_deg`` adds them in
-    quadrature."""
+    doubled by the reflection and stretched by foreshortening: at a normal ``theta`` from
+    the view ray a shift across the outline's radius tilts it by ``1 / cos(theta)`` times
+    what one along the outline does, and an error in any direction by their rms,
+    ``sqrt((1 + 1 / cos^2 theta) / 2)`` (``cos theta`` at least 0.1). ``total_deg`` adds
+    them in quadrature."""
     r_px = sphere.radius * (camera.pixel_scale(sphere.c / np.linalg.norm(sphere.c)) / np.linalg.norm(sphere.c)
                             if camera.perspective else 1.0)
     if circle_px is None:
         circle_px = 0.05 + sphere.outline_rms_px / math.sqrt(max(sphere.outline_points, 1) / 8.0)
     highlight_px = 0.1 + 0.1 * math.sqrt(q["highlight_pixels"])
-    cos_n = max(math.cos(math.radians(q["view_angle_deg"] / 2.0)), 0.1)
-    to_deg = math.degrees(2.0 / (r_px * cos_n))
+    cos_n = max(math.cos(math.radians(q["view_angle_deg"])), 0.1)
+    to_deg = math.degrees(2.0 / r_px * math.sqrt(0.5 * (1.0 + 1.0 / cos_n ** 2)))
     circle_deg = circle_px * to_deg
     highlight_deg = (highlight_px * to_deg + 0.1 * q["highlight_spread_deg"]
                      + q.get("ambiguity", 0.0) * q.get("alternative_separation_deg", 0.0))
