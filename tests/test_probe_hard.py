@@ -235,6 +235,27 @@ def test_a_lit_objects_clipped_patch_shading_down_loses_to_the_light_that_falls_
     assert tie.quality["ambiguity"] > 0.9 and found.quality["ambiguity"] < tie.quality["ambiguity"] - 0.2
 
 
+def test_a_patch_shading_down_less_than_the_level_loses_when_the_light_drops_at_once(monkeypatch):
+    # team scene 22340 (130 deg off): the light sits on a lit wall's faint glow, which costs
+    # it as not standing alone; a lit object's clipped patch shades down to about 0.6 of its
+    # peak, under the level a lens's blur asks for (0.6: a blurred light stands at 0.7), so
+    # nothing marked it. In a sharp image the light itself shows what the blur leaves
+    # beside a clipped light (it drops at once): the patch stands well above that
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 60.0, 8.0)
+    light = np.array([0.35, 0.45, 0.82]) / np.linalg.norm([0.35, 0.45, 0.82])
+    ball = np.array([-0.4, 0.35, 0.85]) / np.linalg.norm([-0.4, 0.35, 0.85])
+
+    def extra(s):
+        return _lit_object(ball, halo=0.8)(s) + _lit_wall(light, core_deg=0.0, halo_deg=14.0, halo=0.2)(s)
+    image = _quantise(_render(cam, sphere, light, light_radius_deg=2.0, extra=extra, blur_px=0.3))
+    found = pg.locate_highlight(image, cam, sphere, clip_level=1.0)
+    assert found.quality["candidates"] >= 2
+    assert _angle(found.to_light, light) < DIR_TOL_DEG
+    monkeypatch.setattr(pg, "SHADING_DOWN_GAP", math.inf)     # the level alone: the patch wins
+    assert _angle(pg.locate_highlight(image, cam, sphere, clip_level=1.0).to_light, light) > 30.0
+
+
 def test_a_light_beside_a_lit_objects_clipped_patch_is_not_scored_for_the_patch():
     # a lit object's clipped patch 12 deg from the light (2-3 px in the image): the patch is in
     # the light's surroundings, but it is a candidate of its own, judged on its own

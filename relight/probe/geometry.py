@@ -28,7 +28,7 @@ from __future__ import annotations
 __all__ = [
     "HIGHLIGHT_FRACTION", "TIE_FRACTION", "MAX_LIGHT_SPREAD_DEG", "CORE_RIM_PX", "MERGED_FRACTION",
     "RIM_EXCLUDE_PX", "MAX_RIM_ANGLE_DEG", "ISOLATION_RING_PX", "ISOLATION_LEVEL", "ISOLATION_WEIGHT",
-    "SHADING_DOWN_LEVEL", "SHADING_DOWN_WEIGHT",
+    "SHADING_DOWN_LEVEL", "SHADING_DOWN_WEIGHT", "SHADING_DOWN_GAP",
     "CLIPS_AT", "UNCLIPPED_STRIKE", "LIT_FRACTION", "DIFFUSE_RIM_FRACTION", "ORTHO_DEPTH",
     "OUTLINE_LOSS_SCALE_PX", "Camera", "Sphere", "sphere_from_cone", "sphere_from_circle", "fit_sphere",
     "mask_outline_points", "sphere_from_mask", "outline_circle", "outline_polygon", "bounding_box", "surface",
@@ -67,6 +67,8 @@ ISOLATION_LEVEL = 0.1          # ... whose 90th percentile above 10% of the cand
 ISOLATION_WEIGHT = 1.5         # ... costs 1.5 score units per unit of that share (a lit surface continues)
 SHADING_DOWN_LEVEL = 0.6       # a clipped candidate whose touching pixels stand above its surroundings by 60% of its peak ...
 SHADING_DOWN_WEIGHT = 1.5      # ... costs 1.5 score units per unit beyond (a lit object's patch shades down; a light drops at once)
+SHADING_DOWN_GAP = 0.3         # ... or by 0.3 more than the clipped candidate that drops most at once (what the image's blur
+                               # alone leaves beside a clipped light)
 CLIPS_AT = 0.995               # a luminance within 0.5% of the clip level clips
 UNCLIPPED_STRIKE = 1.0         # in an image that clips on the sphere, a candidate that does not: one strike
 FOOTPRINT_MAX_PX = 30          # a clipped core of at most this many pixels is located by its footprint
@@ -830,7 +832,10 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
     touching pixels above its surroundings by more than :data:`SHADING_DOWN_LEVEL` of its
     peak marks a lit object's clipped patch, bright at its edge and dark a pixel or two
     out; a light far above the clip level drops from it at once, to 0.07 of it at the
-    median on the harder probe set's Cycles renders, 0.70 under a 0.6 px lens blur), and,
+    median on the harder probe set's Cycles renders, 0.70 under a 0.6 px lens blur; so a
+    clipped candidate standing more than :data:`SHADING_DOWN_GAP` above the one that drops
+    most at once is shading down too, whatever the level: that one shows what the image's
+    blur alone leaves beside a clipped light), and,
     when ``expect_to_light`` (a diffuse sphere's shading direction) is given, near that
     direction. In a linear HDR image a dimmer blob loses by its brightness too; in one
     that clips (``clip_level``, reached on the sphere) a blob that does not clip takes
@@ -845,6 +850,7 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
     refl = s["reflect"]
     cos_view = s["cos_view"]
     scores, dirs = [], []
+    shading_down: dict[int, float] = {}
     for k in index:
         ys, xs = np.nonzero(cores == k)
         w = crop[ys, xs]
@@ -868,8 +874,7 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
         surround = _surround_share(crop, blob, usable, (cores > 0) & ~blob) if apart else around
         score -= ISOLATION_WEIGHT * max(0.0, surround - ISOLATION_LEVEL)
         if clip_at is not None and float(w.max()) >= clip_at and touching.size >= 3:
-            shading_down = float(np.percentile(touching, 90)) / float(w.max()) - around
-            score -= SHADING_DOWN_WEIGHT * max(0.0, shading_down - SHADING_DOWN_LEVEL)
+            shading_down[len(scores)] = float(np.percentile(touching, 90)) / float(w.max()) - around
         if expect_to_light is not None:
             e = np.asarray(expect_to_light, np.float64)
             angle = math.degrees(math.acos(float(np.clip(d @ (e / np.linalg.norm(e)), -1.0, 1.0))))
@@ -879,6 +884,10 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
             score -= UNCLIPPED_STRIKE
         score += 0.05 * math.log10(ys.size)                             # ties: the larger blob (a brighter light)
         scores.append(score)
+    if shading_down:
+        level = min(SHADING_DOWN_LEVEL, min(shading_down.values()) + SHADING_DOWN_GAP)
+        for i, value in shading_down.items():
+            scores[i] -= SHADING_DOWN_WEIGHT * max(0.0, value - level)
     return np.asarray(scores), np.asarray(dirs)
 
 
