@@ -28,7 +28,7 @@ from __future__ import annotations
 __all__ = [
     "HIGHLIGHT_FRACTION", "TIE_FRACTION", "MAX_LIGHT_SPREAD_DEG", "CORE_RIM_PX", "MERGED_FRACTION",
     "RIM_EXCLUDE_PX", "MAX_RIM_ANGLE_DEG", "ISOLATION_RING_PX", "ISOLATION_LEVEL", "ISOLATION_WEIGHT",
-    "SHADING_DOWN_LEVEL", "SHADING_DOWN_WEIGHT", "SHADING_DOWN_GAP",
+    "SHADING_DOWN_LEVEL", "SHADING_DOWN_WEIGHT", "SHADING_DOWN_GAP", "GRAZING_WEIGHT",
     "CLIPS_AT", "UNCLIPPED_STRIKE", "LIT_FRACTION", "DIFFUSE_RIM_FRACTION", "ORTHO_DEPTH",
     "OUTLINE_LOSS_SCALE_PX", "Camera", "Sphere", "sphere_from_cone", "sphere_from_circle", "fit_sphere",
     "mask_outline_points", "sphere_from_mask", "outline_circle", "outline_polygon", "bounding_box", "surface",
@@ -58,7 +58,10 @@ LIT_FRACTION = (0.25, 0.95)    # diffuse pixels used for the shading fit, as fra
 DIFFUSE_RIM_FRACTION = 0.9     # diffuse fit: normals within 0.9 of the radius (as relight.probe.ortho)
 ORTHO_DEPTH = 1.0e4            # z of an orthographic sphere's centre (any value works)
 OUTLINE_LOSS_SCALE_PX = 0.5    # robust outline fit: residuals beyond ~0.5 px count less
-RIM_BLOB_ANGLE_DEG = 65.0      # a blob whose normals lie beyond this from the view ray is grazing
+RIM_BLOB_ANGLE_DEG = 65.0      # a blob whose normals lie beyond this from the view ray is grazing ...
+GRAZING_WEIGHT = 0.5           # ... and costs 0.5 score units per share of its pixels there (a lit floor's reflection
+                               # stretched along the rim is marked by its elongation and spread too; a light near the rim
+                               # is not; 2.0 until the twenty-sixth round)
 SMALL_HIGHLIGHT_PX = 12        # an unclipped highlight of at most this many pixels: measured in a soft window
 WINDOW_MARGIN_PX = 1.5         # a compact highlight's centroid window: its core's radius plus 1.5 px (lens blur)
 AMBIGUITY_MARGIN = 0.5         # two highlight candidates within this score of each other: ambiguous
@@ -707,10 +710,27 @@ def _windowed_centre(crop: np.ndarray, usable: np.ndarray, s: dict, mask: np.nda
     return _soft_window_centroid(crop, own, start, level, radius, core=best_core if clips else None)
 
 
-def _principal_variances(xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+def _principal_variances(xs: np.ndarray, ys: np.ndarray, stretch: np.ndarray | None = None) -> np.ndarray:
     """The variances of pixels ``(xs, ys)`` along their principal axes (ascending), each
-    pixel's own extent (a unit square: 1/12) included."""
-    return np.linalg.eigvalsh(np.cov(np.stack([xs, ys]).astype(np.float64)) + np.eye(2) / 12.0)
+    pixel's own extent (a unit square: 1/12) included; with ``stretch`` (2 x 2), of the
+    pixels so mapped."""
+    cov = np.cov(np.stack([xs, ys]).astype(np.float64)) + np.eye(2) / 12.0
+    if stretch is not None:
+        cov = stretch @ cov @ stretch.T
+    return np.linalg.eigvalsh(cov)
+
+
+def _unforeshortened(camera: Camera, sphere: Sphere, x: float, y: float, cos_view: float) -> np.ndarray:
+    """The 2 x 2 map undoing the mirror's compression of a blob at image pixel ``(x, y)``
+    across the outline's radius: a round light's highlight at a normal whose cosine to the
+    view ray is ``cos_view`` is that much shorter across the radius than along the outline
+    (the cosine taken as at least 0.2)."""
+    cx, cy, _ = outline_circle(camera, sphere)
+    u = np.array([x - cx, y - cy])
+    if not np.linalg.norm(u) > 0:
+        return np.eye(2)
+    u /= np.linalg.norm(u)
+    return np.eye(2) + (1.0 / max(cos_view, 0.2) - 1.0) * np.outer(u, u)
 
 
 def _disc_like(blob: np.ndarray, max_elongation: float = 1.5, max_excess: float = 0.3) -> bool:
@@ -820,8 +840,10 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
     light's highlight, and its reflected direction (intensity-weighted mean).
 
     A small light's highlight is compact (spread of reflected directions within
-    ``spread_limit``), round in the image (elongation: the ratio of the blob's principal
-    axes, a pixel's own extent included), not compressed against the rim (the share of
+    ``spread_limit``), round (elongation: the ratio of the blob's principal axes, a
+    pixel's own extent included, once the mirror's compression across the rim is undone,
+    :func:`_unforeshortened`: near the rim a round light's highlight is that much
+    shorter across the radius), not compressed against the rim (the share of
     its pixels whose normal is more than :data:`RIM_BLOB_ANGLE_DEG` from the view ray: a
     grazing reflection of a lit floor or wall lies there, stretched along the rim),
     standing alone (:func:`_surround_share` of the ``usable`` pixels around it: a lit
@@ -861,10 +883,13 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
         spread = _spread_deg(refl[ys, xs]) if ys.size > 1 else 0.0
         score -= max(0.0, spread - spread_limit) / max(spread_limit, 1e-6)
         if ys.size >= 3:
-            ev = _principal_variances(xs, ys)
+            # round as a light's highlight is: the mirror's compression across the rim undone
+            stretch = _unforeshortened(camera, sphere, float(xs.mean()) + origin[0] + 0.5,
+                                       float(ys.mean()) + origin[1] + 0.5, float(cos_view[ys, xs].mean()))
+            ev = _principal_variances(xs, ys, stretch)
             score -= 0.5 * max(0.0, math.sqrt(ev[1] / max(ev[0], 1e-9)) - 1.5)
         grazing = float(np.mean(cos_view[ys, xs] < math.cos(math.radians(RIM_BLOB_ANGLE_DEG))))
-        score -= 2.0 * grazing
+        score -= GRAZING_WEIGHT * grazing
         blob = cores == k
         touching = _touching_pixels(crop, blob, usable)
         # a candidate that drops below half its peak at once is judged on its own
