@@ -593,11 +593,11 @@ def _rim_light(crop: np.ndarray, usable: np.ndarray, s: dict, mask: np.ndarray |
     lies right behind it, so its edge can lie that far inside) leaves all of it in the
     band, the search then choosing a dim reflection inside. They count when the band's
     brightest pixels stand :data:`RIM_LIGHT_RATIO` above everything inside (or clip where
-    nothing inside does) and are the sphere's own: continued past the outline through
-    pixels as bright (within :data:`TIE_FRACTION` of them where they clip, else half),
-    they still form a disc (the blur spreads a light across the outline as much as
-    inward); a bright wall, or the light itself, seen right behind the sphere runs along
-    the outline instead. Empty otherwise."""
+    nothing inside does) and are the sphere's own: nothing as bright lies past the
+    outline beside them (within :data:`TIE_FRACTION` of them where they clip, else half),
+    or, continued there, they still form a disc (the blur spreads a light across the
+    outline as much as inward); a bright wall, or the light itself, seen right behind the
+    sphere runs along the outline instead. Empty otherwise."""
     none = np.zeros(crop.shape, bool)
     band = s["hit"] & ~usable & (s["cos_view"] > 0)
     if mask is not None:
@@ -614,7 +614,8 @@ def _rim_light(crop: np.ndarray, usable: np.ndarray, s: dict, mask: np.ndarray |
     light = none.copy()
     for k in range(1, n + 1):
         blob = blobs == k
-        if _disc_like(_core_into_rim(crop, blob, ~s["hit"], TIE_FRACTION if clipped else HIGHLIGHT_FRACTION)):
+        whole = _core_into_rim(crop, blob, ~s["hit"], TIE_FRACTION if clipped else HIGHLIGHT_FRACTION)
+        if whole.sum() == blob.sum() or _disc_like(whole):
             light |= blob
     return light
 
@@ -710,27 +711,10 @@ def _windowed_centre(crop: np.ndarray, usable: np.ndarray, s: dict, mask: np.nda
     return _soft_window_centroid(crop, own, start, level, radius, core=best_core if clips else None)
 
 
-def _principal_variances(xs: np.ndarray, ys: np.ndarray, stretch: np.ndarray | None = None) -> np.ndarray:
+def _principal_variances(xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
     """The variances of pixels ``(xs, ys)`` along their principal axes (ascending), each
-    pixel's own extent (a unit square: 1/12) included; with ``stretch`` (2 x 2), of the
-    pixels so mapped."""
-    cov = np.cov(np.stack([xs, ys]).astype(np.float64)) + np.eye(2) / 12.0
-    if stretch is not None:
-        cov = stretch @ cov @ stretch.T
-    return np.linalg.eigvalsh(cov)
-
-
-def _unforeshortened(camera: Camera, sphere: Sphere, x: float, y: float, cos_view: float) -> np.ndarray:
-    """The 2 x 2 map undoing the mirror's compression of a blob at image pixel ``(x, y)``
-    across the outline's radius: a round light's highlight at a normal whose cosine to the
-    view ray is ``cos_view`` is that much shorter across the radius than along the outline
-    (the cosine taken as at least 0.2)."""
-    cx, cy, _ = outline_circle(camera, sphere)
-    u = np.array([x - cx, y - cy])
-    if not np.linalg.norm(u) > 0:
-        return np.eye(2)
-    u /= np.linalg.norm(u)
-    return np.eye(2) + (1.0 / max(cos_view, 0.2) - 1.0) * np.outer(u, u)
+    pixel's own extent (a unit square: 1/12) included."""
+    return np.linalg.eigvalsh(np.cov(np.stack([xs, ys]).astype(np.float64)) + np.eye(2) / 12.0)
 
 
 def _disc_like(blob: np.ndarray, max_elongation: float = 1.5, max_excess: float = 0.3) -> bool:
@@ -840,10 +824,8 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
     light's highlight, and its reflected direction (intensity-weighted mean).
 
     A small light's highlight is compact (spread of reflected directions within
-    ``spread_limit``), round (elongation: the ratio of the blob's principal axes, a
-    pixel's own extent included, once the mirror's compression across the rim is undone,
-    :func:`_unforeshortened`: near the rim a round light's highlight is that much
-    shorter across the radius), not compressed against the rim (the share of
+    ``spread_limit``), round in the image (elongation: the ratio of the blob's principal
+    axes, a pixel's own extent included), not compressed against the rim (the share of
     its pixels whose normal is more than :data:`RIM_BLOB_ANGLE_DEG` from the view ray: a
     grazing reflection of a lit floor or wall lies there, stretched along the rim),
     standing alone (:func:`_surround_share` of the ``usable`` pixels around it: a lit
@@ -883,10 +865,7 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
         spread = _spread_deg(refl[ys, xs]) if ys.size > 1 else 0.0
         score -= max(0.0, spread - spread_limit) / max(spread_limit, 1e-6)
         if ys.size >= 3:
-            # round as a light's highlight is: the mirror's compression across the rim undone
-            stretch = _unforeshortened(camera, sphere, float(xs.mean()) + origin[0] + 0.5,
-                                       float(ys.mean()) + origin[1] + 0.5, float(cos_view[ys, xs].mean()))
-            ev = _principal_variances(xs, ys, stretch)
+            ev = _principal_variances(xs, ys)
             score -= 0.5 * max(0.0, math.sqrt(ev[1] / max(ev[0], 1e-9)) - 1.5)
         grazing = float(np.mean(cos_view[ys, xs] < math.cos(math.radians(RIM_BLOB_ANGLE_DEG))))
         score -= GRAZING_WEIGHT * grazing
