@@ -393,21 +393,29 @@ def test_a_bright_streak_touching_a_lens_blurred_clipped_highlight_does_not_pull
     assert _angle(found.to_light, light) < DIR_TOL_DEG
 
 
+def _behind_the_sphere(inside_px):
+    """An 18 px sphere and a light behind it whose highlight lies ``inside_px`` inside the
+    outline along (0.3, -1) from the centre. Returns the camera, sphere, the highlight's
+    pixel, the sphere's render without the light (linear, one channel) and the outline's
+    distance from the centre along that line."""
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 60.0, 5.0)
+    cx, cy = cam.project(sphere.c)
+    rim = next(d for d in np.arange(0.0, 30.0, 0.01)
+               if not pg.surface(cam, sphere, np.array([cx + 0.3 * d]), np.array([cy - d]))["hit"][0])
+    d = rim - inside_px
+    light = pg.surface(cam, sphere, np.array([cx + 0.3 * d]), np.array([cy - d]))["reflect"][0]
+    spot, _ = pg.predict_highlight(cam, sphere, light)
+    return cam, sphere, spot, _render(cam, sphere, light, radiance=0.0, clip=False)[..., 0], rim
+
+
 @pytest.mark.parametrize("inside_px, clip", [(1.4, True), (1.0, False), (1.4, False)])
 def test_a_highlight_by_the_rim_keeps_its_pixels_in_the_rim_band(inside_px, clip):
     # a light behind the sphere: its highlight 1-1.4 px inside the outline, where the search
     # leaves out the rim band (pixels within 1 px of the outline mix with what lies beyond);
     # the light's core continues there, and without those pixels the highlight moved inward
     # by 0.3-0.56 px (5-10 degrees on this 18 px sphere)
-    cam = pg.Camera.from_fov(W, H, FOV_DEG)
-    sphere = _sphere_at(cam, 80.0, 60.0, 5.0)
-    cx, cy = cam.project(sphere.c)
-    rim = next(d for d in np.arange(0.0, 30.0, 0.01)     # the outline along (0.3, -1) from the centre
-               if not pg.surface(cam, sphere, np.array([cx + 0.3 * d]), np.array([cy - d]))["hit"][0])
-    d = rim - inside_px
-    light = pg.surface(cam, sphere, np.array([cx + 0.3 * d]), np.array([cy - d]))["reflect"][0]
-    spot, _ = pg.predict_highlight(cam, sphere, light)
-    img = _render(cam, sphere, light, radiance=0.0, clip=False)[..., 0]
+    cam, sphere, spot, img, _ = _behind_the_sphere(inside_px)
     img = img + _blob(*spot, 0.5, (8.0 if clip else 2.0) * 2 * math.pi * 0.25)   # clipped: 8x the clip level
     img = np.repeat(img[..., None], 3, -1)
     found = pg.locate_highlight(_quantise(np.clip(img, 0, 1)) if clip else img, cam, sphere,
@@ -421,15 +429,8 @@ def _light_in_the_rim_band(inside_px, clip, bleed=False):
     a pixel small), and a dim reflection in the interior (a third of the clip level). With
     ``bleed`` what lies right behind the sphere on that side is as bright as the light (a
     lit wall). Returns the camera, sphere, image, the light's pixel and the dim blob's."""
-    cam = pg.Camera.from_fov(W, H, FOV_DEG)
-    sphere = _sphere_at(cam, 80.0, 60.0, 5.0)
+    cam, sphere, spot, img, rim = _behind_the_sphere(inside_px)
     cx, cy = cam.project(sphere.c)
-    rim = next(d for d in np.arange(0.0, 30.0, 0.01)     # the outline along (0.3, -1) from the centre
-               if not pg.surface(cam, sphere, np.array([cx + 0.3 * d]), np.array([cy - d]))["hit"][0])
-    d = rim - inside_px
-    light = pg.surface(cam, sphere, np.array([cx + 0.3 * d]), np.array([cy - d]))["reflect"][0]
-    spot, _ = pg.predict_highlight(cam, sphere, light)
-    img = _render(cam, sphere, light, radiance=0.0, clip=False)[..., 0]
     peak = 8.0 if clip else 50.0                 # clipped: 8x the clip level; linear: far above the scene
     img = img + _blob(*spot, 0.25, peak * 2 * math.pi * 0.0625)
     dim = np.floor([cx - 3.0, cy + 2.0]) + 0.5
