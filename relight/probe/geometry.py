@@ -80,6 +80,8 @@ BLUR_TAIL_SHARE = 0.05         # ... the pixels touching it no further, at the m
                                # from the level around them to the clip (else a blur surrounds it)
 MIRROR_SHARE = 0.25            # beside a clipped core, a pixel whose mirror image holds under 25% of it is not the light
 DOWNHILL_MARGIN = 0.05         # a highlight's blur pixel has no neighbour outside it brighter by 5% of its peak
+CORE_STRUCTURE = ndimage.generate_binary_structure(2, 1)   # the brightest cores are 4-connected: a light's clipped
+                               # disc touching a lit surface's clipped patch at a corner is two candidates, not one
 RIM_LIGHT_RATIO = 2.0          # the rim band holds the light when it is this much brighter than the interior (or clips
                                # where the interior does not)
 
@@ -421,13 +423,13 @@ def highlight_likelihood(image: np.ndarray, camera: Camera, sphere: Sphere) -> f
 
 def _scored_cores(camera: Camera, sphere: Sphere, crop: np.ndarray, usable: np.ndarray, s: dict,
                   offset: tuple[int, int], peak: float, expect_to_light, clip_level: float | None = None):
-    """The brightest cores of a sphere's crop (connected pixels within
+    """The brightest cores of a sphere's crop (4-connected pixels, :data:`CORE_STRUCTURE`, within
     :data:`TIE_FRACTION` of ``peak``: clipped blobs, or the peak pixel of an unclipped
     image), each scored by what a small light predicts (:func:`_core_scores`). Returns
     ``(cores, core_index, scores, core_dirs, spread_limit)``: the label image, the labels,
     their scores and reflected directions, and the compactness limit in degrees."""
     x0, y0 = offset
-    cores, n_cores = ndimage.label(usable & (crop >= TIE_FRACTION * peak), np.ones((3, 3)))
+    cores, n_cores = ndimage.label(usable & (crop >= TIE_FRACTION * peak), CORE_STRUCTURE)
     core_index = np.arange(1, n_cores + 1)
     cys, cxs = np.nonzero(cores > 0)
     footprint_deg = math.degrees(math.sqrt(float(np.median(_solid_angle_weights(
