@@ -256,6 +256,31 @@ def test_a_patch_shading_down_less_than_the_level_loses_when_the_light_drops_at_
     assert _angle(pg.locate_highlight(image, cam, sphere, clip_level=1.0).to_light, light) > 30.0
 
 
+def test_a_light_touching_a_lit_patch_at_a_corner_is_a_candidate_of_its_own(monkeypatch):
+    # team28 scene 22906 (11 deg): the light's clipped pixels touched a lit wall's clipped
+    # reflection at one corner; joined into one core by 8-connectivity, the two were
+    # measured together and the light's centre moved onto the patch. 4-connected, the
+    # light is a candidate of its own, and it drops at once where the patch shades down
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 60.0, 10.0)
+    light = np.array([0.3, 0.4, 0.87]) / np.linalg.norm([0.3, 0.4, 0.87])
+    spot, _ = pg.predict_highlight(cam, sphere, light)
+    image = _quantise(_render(cam, sphere, light, light_radius_deg=0.01))   # the sphere, no highlight
+    sx, sy = int(spot[0]), int(spot[1])
+    for dx, dy in ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1)):               # the light: a clipped plus
+        image[sy + dy, sx + dx] = 1.0
+    yy, xx = np.mgrid[0:H, 0:W]
+    patch = (xx >= sx + 1) & (xx <= sx + 5) & (yy >= sy + 2) & (yy <= sy + 4)   # its corner at the plus's arm
+    around = (xx >= sx) & (xx <= sx + 6) & (yy >= sy + 2) & (yy <= sy + 6) & ~patch & ~((xx <= sx) & (yy <= sy + 2))
+    image[around] = 0.75                                                        # shading down around the patch
+    image[patch] = 1.0
+    found = pg.locate_highlight(image, cam, sphere, clip_level=1.0)
+    assert found.quality["candidates"] == 2
+    assert math.dist(found.pixel, (sx + 0.5, sy + 0.5)) < 0.5
+    monkeypatch.setattr(pg, "CORE_STRUCTURE", np.ones((3, 3), bool))          # 8-connected: one core, pulled
+    assert math.dist(pg.locate_highlight(image, cam, sphere, clip_level=1.0).pixel, (sx + 0.5, sy + 0.5)) > 1.0
+
+
 def test_a_light_beside_a_lit_objects_clipped_patch_is_not_scored_for_the_patch():
     # a lit object's clipped patch 12 deg from the light (2-3 px in the image): the patch is in
     # the light's surroundings, but it is a candidate of its own, judged on its own
