@@ -28,7 +28,7 @@ from __future__ import annotations
 __all__ = [
     "HIGHLIGHT_FRACTION", "TIE_FRACTION", "MAX_LIGHT_SPREAD_DEG", "CORE_RIM_PX", "MERGED_FRACTION",
     "RIM_EXCLUDE_PX", "MAX_RIM_ANGLE_DEG", "ISOLATION_RING_PX", "ISOLATION_LEVEL", "ISOLATION_WEIGHT",
-    "SHADING_DOWN_LEVEL", "SHADING_DOWN_WEIGHT", "SHADING_DOWN_GAP", "GRAZING_WEIGHT",
+    "SHADING_DOWN_LEVEL", "SHADING_DOWN_WEIGHT", "SHADING_DOWN_GAP", "SHADING_DOWN_REF_PX", "GRAZING_WEIGHT",
     "CLIPS_AT", "UNCLIPPED_STRIKE", "LIT_FRACTION", "DIFFUSE_RIM_FRACTION", "ORTHO_DEPTH",
     "OUTLINE_LOSS_SCALE_PX", "Camera", "Sphere", "sphere_from_cone", "sphere_from_circle", "fit_sphere",
     "mask_outline_points", "sphere_from_mask", "outline_circle", "outline_polygon", "bounding_box", "surface",
@@ -71,7 +71,9 @@ ISOLATION_WEIGHT = 1.5         # ... costs 1.5 score units per unit of that shar
 SHADING_DOWN_LEVEL = 0.6       # a clipped candidate whose touching pixels stand above its surroundings by 60% of its peak ...
 SHADING_DOWN_WEIGHT = 1.5      # ... costs 1.5 score units per unit beyond (a lit object's patch shades down; a light drops at once)
 SHADING_DOWN_GAP = 0.3         # ... or by 0.3 more than the clipped candidate that drops most at once (what the image's blur
-                               # alone leaves beside a clipped light)
+                               # alone leaves beside a clipped light) ...
+SHADING_DOWN_REF_PX = 3        # ... among those of at least 3 pixels (a lone clipped pixel or two with dark neighbours, a hot
+                               # pixel or a speck, says nothing of the blur)
 CLIPS_AT = 0.995               # a luminance within 0.5% of the clip level clips
 UNCLIPPED_STRIKE = 1.0         # in an image that clips on the sphere, a candidate that does not: one strike
 FOOTPRINT_MAX_PX = 30          # a clipped core of at most this many pixels is located by its footprint
@@ -840,8 +842,9 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
     out; a light far above the clip level drops from it at once, to 0.07 of it at the
     median on the harder probe set's Cycles renders, 0.70 under a 0.6 px lens blur; so a
     clipped candidate standing more than :data:`SHADING_DOWN_GAP` above the one that drops
-    most at once is shading down too, whatever the level: that one shows what the image's
-    blur alone leaves beside a clipped light), and,
+    most at once (of at least :data:`SHADING_DOWN_REF_PX` pixels) is shading down too,
+    whatever the level: that one shows what the image's blur alone leaves beside a clipped
+    light), and,
     when ``expect_to_light`` (a diffuse sphere's shading direction) is given, near that
     direction. In a linear HDR image a dimmer blob loses by its brightness too; in one
     that clips (``clip_level``, reached on the sphere) a blob that does not clip takes
@@ -857,6 +860,7 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
     cos_view = s["cos_view"]
     scores, dirs = [], []
     shading_down: dict[int, float] = {}
+    reference: list[float] = []
     for k in index:
         ys, xs = np.nonzero(cores == k)
         w = crop[ys, xs]
@@ -881,6 +885,8 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
         score -= ISOLATION_WEIGHT * max(0.0, surround - ISOLATION_LEVEL)
         if clip_at is not None and float(w.max()) >= clip_at and touching.size >= 3:
             shading_down[len(scores)] = float(np.percentile(touching, 90)) / float(w.max()) - around
+            if ys.size >= SHADING_DOWN_REF_PX:
+                reference.append(shading_down[len(scores)])
         if expect_to_light is not None:
             e = np.asarray(expect_to_light, np.float64)
             angle = math.degrees(math.acos(float(np.clip(d @ (e / np.linalg.norm(e)), -1.0, 1.0))))
@@ -891,7 +897,7 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
         score += 0.05 * math.log10(ys.size)                             # ties: the larger blob (a brighter light)
         scores.append(score)
     if shading_down:
-        level = min(SHADING_DOWN_LEVEL, min(shading_down.values()) + SHADING_DOWN_GAP)
+        level = min([SHADING_DOWN_LEVEL] + [value + SHADING_DOWN_GAP for value in reference])
         for i, value in shading_down.items():
             scores[i] -= SHADING_DOWN_WEIGHT * max(0.0, value - level)
     return np.asarray(scores), np.asarray(dirs)
