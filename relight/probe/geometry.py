@@ -72,7 +72,7 @@ SHADING_DOWN_LEVEL = 0.6       # a clipped candidate whose touching pixels stand
 SHADING_DOWN_WEIGHT = 1.5      # ... costs 1.5 score units per unit beyond (a lit object's patch shades down; a light drops at once)
 SHADING_DOWN_GAP = 0.3         # ... or by 0.3 more than the clipped candidate that drops most at once (what the image's blur
                                # alone leaves beside a clipped light) ...
-SHADING_DOWN_REF_PX = 3        # ... among those of at least 3 pixels (a lone clipped pixel or two with dark neighbours, a hot
+SHADING_DOWN_REF_PX = 2        # ... among those of at least 2 pixels (a lone clipped pixel with dark neighbours, a hot
                                # pixel or a speck, says nothing of the blur)
 CLIPS_AT = 0.995               # a luminance within 0.5% of the clip level clips
 UNCLIPPED_STRIKE = 1.0         # in an image that clips on the sphere, a candidate that does not: one strike
