@@ -490,8 +490,8 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     if usable.sum() < 5:
         raise ProbeError("the chrome sphere is too small or hidden (fewer than 5 usable pixels)")
     crop = lum[y0:y1, x0:x1]
-    usable = usable | _rim_light(crop, usable, s, None if mask is None else np.asarray(mask, bool)[y0:y1, x0:x1],
-                                 clip_level)
+    mask_crop = None if mask is None else np.asarray(mask, bool)[y0:y1, x0:x1]
+    usable = usable | _rim_light(crop, usable, s, mask_crop, clip_level)
     values = crop[usable]
     peak = float(values.max())
     floor = float(np.median(values))
@@ -557,7 +557,7 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
         # outline cuts off
         centre = _clipped_footprint_centre(camera, sphere, crop, best_core, usable, (x0, y0)) if clips else None
         if centre is None:
-            centre = _windowed_centre(crop, usable, s, None if mask is None else np.asarray(mask, bool)[y0:y1, x0:x1],
+            centre = _windowed_centre(crop, usable, s, mask_crop,
                                       best_core, cores, clips, background)
         px, py = centre[0] + x0, centre[1] + y0
     at_centroid = surface(camera, sphere, np.array([px]), np.array([py]))
@@ -589,6 +589,14 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     return Highlight(to_light, (px, py), quality)
 
 
+def _rim_band(usable: np.ndarray, s: dict, mask: np.ndarray | None) -> np.ndarray:
+    """The rim band: the pixels on the sphere, facing the camera, that the search leaves
+    out as within :data:`RIM_EXCLUDE_PX` of the outline (not ``usable``), within ``mask``
+    (cropped as ``usable``) if given."""
+    band = s["hit"] & ~usable & (s["cos_view"] > 0)
+    return band if mask is None else band & mask
+
+
 def _rim_light(crop: np.ndarray, usable: np.ndarray, s: dict, mask: np.ndarray | None,
                clip_level: float | None) -> np.ndarray:
     """The rim band's pixels (on the sphere within :data:`RIM_EXCLUDE_PX` of its outline,
@@ -603,9 +611,7 @@ def _rim_light(crop: np.ndarray, usable: np.ndarray, s: dict, mask: np.ndarray |
     outline as much as inward); a bright wall, or the light itself, seen right behind the
     sphere runs along the outline instead. Empty otherwise."""
     none = np.zeros(crop.shape, bool)
-    band = s["hit"] & ~usable & (s["cos_view"] > 0)
-    if mask is not None:
-        band &= mask
+    band = _rim_band(usable, s, mask)
     if not band.any() or not usable.any():
         return none
     inner, top = float(crop[usable].max()), float(crop[band].max())
@@ -682,9 +688,7 @@ def _windowed_centre(crop: np.ndarray, usable: np.ndarray, s: dict, mask: np.nda
     # chosen core runs into it at the core's own brightness, those pixels are the light
     # (a light behind the sphere puts its highlight there), and leaving them out moves
     # the highlight inward by up to a pixel: several degrees near the rim
-    rim_band = s["hit"] & ~usable & (s["cos_view"] > 0)
-    if mask is not None:
-        rim_band &= mask
+    rim_band = _rim_band(usable, s, mask)
     best_core = _core_into_rim(crop, best_core, rim_band)
     # A clipped core also continues past the outline itself: the blur spreads the light
     # beyond the sphere's edge as much as inward, and the disc cut there has its centre
