@@ -3,6 +3,7 @@ within its stated uncertainty, never to a worse fit), the highlight chosen among
 bright blobs by what a small light predicts (ambiguity reported when two remain),
 sub-pixel highlight localisation under an image shift, and the batch command (a folder
 of photographs with circles from a CSV) with its one-line errors."""
+import dataclasses
 import json
 import math
 import os
@@ -555,6 +556,64 @@ def test_the_error_budgets_circle_term_is_what_moving_the_circle_does(normal_deg
     q = {"highlight_pixels": 1, "view_angle_deg": view_deg, "highlight_spread_deg": 0.0}
     budget = pg.error_budget(cam, sphere, q, circle_px=step)
     assert budget["circle_deg"] == pytest.approx(rms, rel=0.1)
+
+
+def _arc_biased_fits(cam, circle, phi, rms, draws, rng):
+    """Centre errors (px) of circles fitted to outline points at angles ``phi`` around
+    ``circle``, each moved radially by noise of ``rms`` and a bias shared along arcs (a
+    Gaussian process: RIM_BIAS_PX, correlated over RIM_BIAS_ARC_DEG), ``draws`` times."""
+    cx, cy, r = circle
+    gap = np.angle(np.exp(1j * (phi[:, None] - phi[None, :])))
+    k = detect.RIM_BIAS_PX ** 2 * np.exp(-0.5 * (gap / math.radians(detect.RIM_BIAS_ARC_DEG)) ** 2)
+    w, v = np.linalg.eigh(k)
+    root = v * np.sqrt(np.clip(w, 0.0, None))
+    errors = []
+    for _ in range(draws):
+        move = root @ rng.standard_normal(phi.size) + rms * rng.standard_normal(phi.size)
+        fit = pg.fit_sphere(cam, cx + (r + move) * np.cos(phi), cy + (r + move) * np.sin(phi), robust=False)
+        fx, fy, _ = pg.outline_circle(cam, fit)
+        errors.append(math.hypot(fx - cx, fy - cy))
+    return np.array(errors)
+
+
+@pytest.mark.parametrize("missing_deg", [0.0, 120.0])
+def test_an_outline_centres_stated_error_is_what_arc_biases_do_to_the_fit(missing_deg):
+    # outline_centre_sigma_px propagates the points' noise and their arcs' shared biases
+    # through the circle fit; against a Monte-Carlo of exactly that model (biases drawn,
+    # circles fitted) it must state the rms centre error within 12% (400 draws: the rms's
+    # own scatter is about 4%), on a whole outline and on one whose bottom third shows no
+    # edge (a mirror's rim at the floor it stands on), where the top arc's bias moves the
+    # centre whole and the error must be larger by a quarter at least (it is by a third)
+    cam = pg.Camera(128, 128)
+    circle = (64.0, 64.0, 20.0)
+    rms = 0.1
+    sphere = dataclasses.replace(pg.sphere_from_circle(cam, *circle), outline_rms_px=rms)
+
+    def stated(phi):
+        return detect.outline_centre_sigma_px(cam, sphere, circle[0] + circle[2] * np.cos(phi),
+                                              circle[1] + circle[2] * np.sin(phi))
+    whole = np.linspace(-math.pi, math.pi, 360, endpoint=False)
+    # (image y points down: the bottom of the outline is at +90 deg)
+    phi = whole[np.abs(np.angle(np.exp(1j * (whole - math.pi / 2)))) > math.radians(missing_deg / 2)]
+    errors = _arc_biased_fits(cam, circle, phi, rms, 400, np.random.default_rng(7))
+    assert stated(phi) == pytest.approx(math.sqrt(np.mean(errors ** 2)), rel=0.12)
+    if missing_deg:
+        assert stated(phi) > 1.25 * stated(whole)
+
+
+def test_a_found_chrome_outline_states_its_centres_error_in_the_budget():
+    # the budget's circle term for an outline found in the image is 0.05 px plus the
+    # centre's stated error (outline_sigma_px, kept through the rim's outward shift), and
+    # the old rms rule only for an outline without it (a mask's)
+    cam = pg.Camera.from_fov(W, H, 5.0)
+    sphere = _sphere_at(cam, 80.0, 60.0, 0.5)
+    q = {"highlight_pixels": 1, "view_angle_deg": 40.0, "highlight_spread_deg": 0.0}
+    plain = dataclasses.replace(sphere, outline_rms_px=0.2, outline_points=320)
+    found = dataclasses.replace(plain, outline_sigma_px=0.3)
+    step = pg.error_budget(cam, plain, q, circle_px=1.0)["circle_deg"]    # degrees per pixel
+    assert pg.error_budget(cam, plain, q)["circle_deg"] == pytest.approx(step * (0.05 + 0.2 / math.sqrt(40.0)))
+    assert pg.error_budget(cam, found, q)["circle_deg"] == pytest.approx(step * 0.35)
+    assert detect.outline_from_rim(cam, found, 0.2).outline_sigma_px == 0.3
 
 
 # ------------------------------------------------------------------ sub-pixel localisation

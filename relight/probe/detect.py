@@ -28,9 +28,10 @@ __all__ = [
     "outline_fit_px", "constrained_refinement", "GROW_RADII", "GROW_FINE_RADII", "GROW_MIN_SUPPORT_RATIO", "GROW_ROUNDS",
     "PICK_HIGHLIGHT_WEIGHT", "PICK_RADIUS_WEIGHT", "CHROME_INSIDE_PX", "ON_OUTLINE_PX", "RIM_FIT_ROUNDS", "RIM_FIT_SETTLED_PX", "outer_rim_fit", "DETECTION_MARGIN",
     "rival_sphere", "share_the_rest", "CHROME_RIM_SHIFT", "PIXEL_BLUR_PX", "edge_blur_px", "chrome_rim_shift_px",
-    "outline_from_rim",
+    "outline_from_rim", "RIM_BIAS_PX", "RIM_BIAS_ARC_DEG", "outline_centre_sigma_px",
 ]
 
+import dataclasses
 import math
 import os
 
@@ -81,6 +82,8 @@ ON_OUTLINE_PX = 1e-6           # an edge point this close to a threshold is on i
 RIM_FIT_ROUNDS = 3             # a chrome outline's fit to its outermost edges repeated from its own outline at most this often,
 RIM_FIT_SETTLED_PX = 0.01      # ... until it moves less than this
 CHROME_RIM_SHIFT = 0.2         # a mirror sphere's rim edges lie this many blur widths inside its outline
+RIM_BIAS_PX = 0.2              # ... by an amount that varies along it, by this much (1 sigma) ...
+RIM_BIAS_ARC_DEG = 20.0        # ... alike over arcs of about this many degrees (outline_centre_sigma_px)
 PIXEL_BLUR_PX = math.sqrt(1.0 / 12.0)   # a pixel's own blur (a box one pixel wide: its standard deviation)
 PICK_HIGHLIGHT_WEIGHT = 0.1    # choosing the chrome sphere: per unit of highlight likelihood (strikes) ...
 PICK_RADIUS_WEIGHT = 0.1       # ... and per unit of log radius (a chrome sphere's reflections are smaller circles)
@@ -221,7 +224,34 @@ def outline_from_rim(camera: Camera, sphere: Sphere, shift_px: float) -> Sphere:
     x, y = outline_polygon(camera, sphere, 64)
     dist = np.hypot(x - cx, y - cy)
     grown = fit_sphere(camera, x + shift_px * (x - cx) / dist, y + shift_px * (y - cy) / dist, robust=False)
-    return Sphere(grown.centre, grown.radius, sphere.outline_rms_px, sphere.outline_points)
+    return Sphere(grown.centre, grown.radius, sphere.outline_rms_px, sphere.outline_points, sphere.outline_sigma_px)
+
+
+def outline_centre_sigma_px(camera: Camera, sphere: Sphere, x, y) -> float:
+    """How far the centre of a mirror sphere's outline fitted to its rim's edge points
+    ``(x, y)`` may be off (pixels; the rms of the centre's error, both coordinates
+    together): each point off by the fit's own rms independently, and by a bias its
+    neighbours share. A mirror's rim shows no edge of its own where it mirrors what lies
+    right beside it; the edge found there is a reflection's, inside the outline (by 0.3-1 px
+    on the team-like Cycles renders: a contact shadow, a wall's edge mirrored at the top),
+    or a background edge just outside it, and alike along an arc. That bias is taken as
+    :data:`RIM_BIAS_PX` (1 sigma), correlated as ``exp(-d^2 / 2 a^2)`` between points
+    ``d`` apart in angle around the outline (``a`` = :data:`RIM_BIAS_ARC_DEG`), and carried
+    through the linearised circle fit (centre and radius): ``C = A J^T S J A`` with
+    ``A = (J^T J)^-1``. The points' spread around the outline decides it: on a whole
+    outline opposite arcs' biases largely cancel; where an arc has no points (the rim at
+    the floor), the arc opposite alone places the centre along that line, and its bias
+    moves it whole."""
+    x, y = np.asarray(x, np.float64).ravel(), np.asarray(y, np.float64).ravel()
+    cx, cy, _ = outline_circle(camera, sphere)
+    phi = np.arctan2(y - cy, x - cx)
+    jac = np.stack([np.cos(phi), np.sin(phi), np.ones_like(phi)], 1)
+    gap = np.angle(np.exp(1j * (phi[:, None] - phi[None, :])))
+    cov_points = (sphere.outline_rms_px ** 2 * np.eye(phi.size)
+                  + RIM_BIAS_PX ** 2 * np.exp(-0.5 * (gap / math.radians(RIM_BIAS_ARC_DEG)) ** 2))
+    a = np.linalg.pinv(jac.T @ jac)
+    cov = a @ jac.T @ cov_points @ jac @ a
+    return float(math.sqrt(max(cov[0, 0] + cov[1, 1], 0.0)))
 
 
 def _exposure(image: np.ndarray) -> float:
@@ -969,7 +999,7 @@ def _outer_rim_pass(smoothed: np.ndarray, camera: Camera, sphere: Sphere, peak: 
     cx, cy, r = outline_circle(camera, fitted)
     if math.hypot(cx - cx0, cy - cy0) > 0.15 * r0 or abs(r - r0) > 0.15 * r0:
         return sphere
-    return fitted
+    return dataclasses.replace(fitted, outline_sigma_px=outline_centre_sigma_px(camera, fitted, x[keep], y[keep]))
 
 
 def _grow_once(image: np.ndarray, camera: Camera, cand: dict, smoothed: np.ndarray) -> list[dict]:

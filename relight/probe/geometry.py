@@ -152,6 +152,8 @@ class Sphere:
     radius: float
     outline_rms_px: float = 0.0
     outline_points: int = 0
+    outline_sigma_px: float | None = None   # the outline centre's error (px, rms) where the fit knows it
+                                            # beyond its rms (relight.probe.detect.outline_centre_sigma_px)
 
     @property
     def c(self) -> np.ndarray:
@@ -942,7 +944,10 @@ def error_budget(camera: Camera, sphere: Sphere, q: dict, circle_px: float | Non
     """Rough 1-sigma error budget of the direction (degrees), by source:
 
     * ``circle_deg``: the outline's position error (``circle_px``, e.g. a given circle's
-      stated uncertainty; else from the outline fit's rms and point count),
+      stated uncertainty; else 0.05 px plus the fit's own figure: a chrome outline found
+      in the image its centre's error, ``outline_sigma_px``
+      (:func:`relight.probe.detect.outline_centre_sigma_px`), any other the fit's rms over
+      the square root of an eighth of its point count),
     * ``highlight_deg``: the highlight's position error (pixels, growing with its size),
       its spread, and, when two candidates remain, the angle to the other one times the
       ambiguity,
@@ -959,7 +964,8 @@ def error_budget(camera: Camera, sphere: Sphere, q: dict, circle_px: float | Non
     r_px = sphere.radius * (camera.pixel_scale(sphere.c / np.linalg.norm(sphere.c)) / np.linalg.norm(sphere.c)
                             if camera.perspective else 1.0)
     if circle_px is None:
-        circle_px = 0.05 + sphere.outline_rms_px / math.sqrt(max(sphere.outline_points, 1) / 8.0)
+        circle_px = 0.05 + (sphere.outline_sigma_px if sphere.outline_sigma_px is not None
+                            else sphere.outline_rms_px / math.sqrt(max(sphere.outline_points, 1) / 8.0))
     highlight_px = 0.1 + 0.1 * math.sqrt(q["highlight_pixels"])
     cos_n = max(math.cos(math.radians(q["view_angle_deg"])), 0.1)
     to_deg = math.degrees(2.0 / r_px * math.sqrt(0.5 * (1.0 + 1.0 / cos_n ** 2)))
