@@ -347,3 +347,26 @@ def test_cli_automatic_reports_the_locator_and_runs_without_it(small_render, tmp
     assert np.hypot(loc["circle"][0] - truth[0], loc["circle"][1] - truth[1]) < truth[2] / 3.0
     # it agrees with the choice: 0.66 here (a circle it does not favour gets under 0.01)
     assert loc["probability"] > 0.2
+
+
+def test_a_found_chrome_outline_states_its_centres_error(small_render, tmp_path):
+    # found automatically, the entry states the outline centre's error
+    # (quality.outline_sigma_px, detect.outline_centre_sigma_px), and the budget's circle
+    # term is 0.05 px plus it, turned into degrees as every position error is; given a
+    # circle, its tolerance stands instead and the field is absent
+    from relight.probe import geometry as pg
+    scene, path = small_render
+    entry = {}
+    for extra in ([], ["--chrome-circle", ",".join(f"{v:.3f}" for v in scene.circle("chrome"))]):
+        out = tmp_path / f"p{len(extra)}.json"
+        assert main(["probe", "--chrome", path, "--fov", str(scene.fov_deg), "--out", str(out)] + extra) == 0
+        entry[len(extra)] = json.loads(out.read_text())["predictions"][0]
+    q = entry[0]["quality"]
+    assert "outline_sigma_px" not in entry[2]["quality"]
+    assert 0.0 < q["outline_sigma_px"] < 0.5
+    import cv2
+    h, w = cv2.imread(path).shape[:2]
+    cam = pg.Camera.from_fov(w, h, scene.fov_deg)
+    sphere = pg.sphere_from_circle(cam, *entry[0]["chrome_circle"])
+    per_px = pg.error_budget(cam, sphere, q, circle_px=1.0)["circle_deg"]
+    assert q["error_budget_deg"]["circle_deg"] == pytest.approx((0.05 + q["outline_sigma_px"]) * per_px, rel=0.02)

@@ -212,6 +212,9 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
         entry["quality"] = {k: (round(v, 4) if isinstance(v, float) else v) for k, v in hl.quality.items()
                             if not k.startswith("alternative")}
         entry["quality"]["outline_rms_px"] = round(sphere.outline_rms_px, 4)
+        if sphere.outline_sigma_px is not None and not found.startswith("circle"):
+            # a found chrome outline's centre error, the budget's circle term less 0.05 px
+            entry["quality"]["outline_sigma_px"] = round(sphere.outline_sigma_px, 4)
         entry["quality_deg"] = round(hl.quality["uncertainty_deg"], 3)
         if hl.quality["ambiguity"] > 0:
             q = hl.quality
