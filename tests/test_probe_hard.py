@@ -601,6 +601,31 @@ def test_an_outline_centres_stated_error_is_what_arc_biases_do_to_the_fit(missin
         assert stated(phi) > 1.25 * stated(whole)
 
 
+def test_an_outline_without_the_rim_fits_error_states_it_from_its_edges():
+    # detect.with_centre_error: an outline the rim fit left as it was gets its centre's
+    # error from the rim's edge points around it. On a sphere whose rim stands out all
+    # round it is what the whole outline's points give (within 15%); with the lower half's
+    # background as bright as the rim mirrors there (0.1: its edge falls under the weak
+    # edges' cut, and the lower half keeps no point) it is larger by half at least (twice
+    # as large here; 0.09-0.12 alike); one that already states it keeps it
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = dataclasses.replace(_sphere_at(cam, 80.0, 60.0, 5.0), outline_rms_px=0.05)
+    cx, cy, r = pg.outline_circle(cam, sphere)
+    ys = np.mgrid[0:H, 0:W][0] + 0.5
+    lit = [0.3, 0.4, 0.87]
+    whole = detect.with_centre_error(_quantise(_render(cam, sphere, lit)), cam, sphere).outline_sigma_px
+    t = np.linspace(-math.pi, math.pi, 360, endpoint=False)
+    assert whole == pytest.approx(detect.outline_centre_sigma_px(cam, sphere, cx + r * np.cos(t), cy + r * np.sin(t)),
+                                  rel=0.15)
+    image = _render(cam, sphere, lit)
+    on = pg.surface(cam, sphere, *np.mgrid[0:H, 0:W][::-1] + 0.5)["hit"]
+    dark = np.where(((ys > cy) & ~on)[..., None], 0.1, image)
+    half = detect.with_centre_error(_quantise(dark), cam, sphere).outline_sigma_px
+    assert half > 1.5 * whole
+    stated = dataclasses.replace(sphere, outline_sigma_px=0.7)
+    assert detect.with_centre_error(_quantise(image), cam, stated).outline_sigma_px == 0.7
+
+
 def test_a_found_chrome_outline_states_its_centres_error_in_the_budget():
     # the budget's circle term for an outline found in the image is 0.05 px plus the
     # centre's stated error (outline_sigma_px, kept through the rim's outward shift), and

@@ -28,7 +28,7 @@ __all__ = [
     "outline_fit_px", "constrained_refinement", "GROW_RADII", "GROW_FINE_RADII", "GROW_MIN_SUPPORT_RATIO", "GROW_ROUNDS",
     "PICK_HIGHLIGHT_WEIGHT", "PICK_RADIUS_WEIGHT", "CHROME_INSIDE_PX", "ON_OUTLINE_PX", "RIM_FIT_ROUNDS", "RIM_FIT_SETTLED_PX", "outer_rim_fit", "DETECTION_MARGIN",
     "rival_sphere", "share_the_rest", "CHROME_RIM_SHIFT", "PIXEL_BLUR_PX", "edge_blur_px", "chrome_rim_shift_px",
-    "outline_from_rim", "RIM_BIAS_PX", "RIM_BIAS_ARC_DEG", "outline_centre_sigma_px",
+    "outline_from_rim", "RIM_BIAS_PX", "RIM_BIAS_ARC_DEG", "outline_centre_sigma_px", "with_centre_error",
 ]
 
 import dataclasses
@@ -252,6 +252,24 @@ def outline_centre_sigma_px(camera: Camera, sphere: Sphere, x, y) -> float:
     a = np.linalg.pinv(jac.T @ jac)
     cov = a @ jac.T @ cov_points @ jac @ a
     return float(math.sqrt(max(cov[0, 0] + cov[1, 1], 0.0)))
+
+
+def with_centre_error(image: np.ndarray, camera: Camera, sphere: Sphere) -> Sphere:
+    """A found chrome outline (fitted to its rim's edges in ``image``, the detection's
+    view) with its centre's error stated (:func:`outline_centre_sigma_px`): its own when
+    the rim fit (:func:`outer_rim_fit`) ended with one, else from the rim's edge points
+    around it that such a fit keeps (at their gradient's peak within 1.5 px, at most
+    :data:`CHROME_INSIDE_PX` inside and :data:`REJECT_MIN_PX` outside), as few as they
+    are: the rim fit leaves an outline as it was where under 30% of the radial lines
+    hold such a point, and there the arcs without one are what the error is about."""
+    if sphere.outline_sigma_px is not None:
+        return sphere
+    x, y, _ = edge_points(_edge_image(image), camera, sphere, 1.5, peak=True)
+    dist = _outline_distance(camera, sphere, x, y)
+    keep = (dist >= -CHROME_INSIDE_PX - ON_OUTLINE_PX) & (dist <= REJECT_MIN_PX + ON_OUTLINE_PX)
+    if keep.sum() < 8:
+        return sphere
+    return dataclasses.replace(sphere, outline_sigma_px=outline_centre_sigma_px(camera, sphere, x[keep], y[keep]))
 
 
 def _exposure(image: np.ndarray) -> float:

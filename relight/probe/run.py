@@ -147,14 +147,17 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
         report["checked_from"] = found["checked_from"]
     rival, margin = detect.rival_sphere(candidates, found, kind, exclude) if kind == "chrome" else (None, 0.0)
     rim = 0.0
+    sphere = found["sphere"]
     if kind == "chrome":   # the outline, from the circle fitted to the rim's edges (detect.chrome_rim_shift_px)
-        rim = detect.chrome_rim_shift_px(detect.detection_view(image, clip_level)[0])
+        view = detect.detection_view(image, clip_level)[0]
+        rim = detect.chrome_rim_shift_px(view)
         report["rim_shift_px"] = round(rim, 4)
+        sphere = detect.with_centre_error(view, camera, sphere)
     if rival is not None and margin < detect.DETECTION_MARGIN:
         # another circle scores nearly as well: the detection is ambiguous (see run_probe)
         report.update(ambiguity=1.0 - margin / detect.DETECTION_MARGIN,
                       rival=detect.outline_from_rim(camera, rival["sphere"], rim))
-    return detect.outline_from_rim(camera, found["sphere"], rim), None, "detected", report
+    return detect.outline_from_rim(camera, sphere, rim), None, "detected", report
 
 
 def run_probe(cfg: ProbeConfig) -> ProbeResult:
