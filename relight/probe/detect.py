@@ -951,27 +951,30 @@ def outer_rim_fit(smoothed: np.ndarray, camera: Camera, sphere: Sphere) -> Spher
     that inner edges pulled in and up ends part of the way. Settled, it is repeated with
     each edge at its own gradient's peak (:func:`edge_points` ``peak``): on the harder
     probe set's Cycles renders the outline's centre is 0.137 px from the truth at the
-    median, 0.159 without that last step (docs/probe-history.md, twentieth round). Returns
-    ``sphere`` itself when neither first pass finds a fit, or the outline would end more
-    than 15% of the radius from it (a different circle)."""
+    median, 0.159 without that last step (docs/probe-history.md, twentieth round). The
+    fitted outline states its centre's error from the points its last pass kept
+    (:func:`outline_centre_sigma_px`). Returns ``sphere`` itself when neither first pass
+    finds a fit, or the outline would end more than 15% of the radius from it (a
+    different circle)."""
     cx0, cy0, r0 = outline_circle(camera, sphere)
-    fitted = sphere
+    fitted, kept = sphere, None
     for peak in (False, True):
         for _ in range(RIM_FIT_ROUNDS):
-            new = _outer_rim_pass(smoothed, camera, fitted, peak)
+            new, points = _outer_rim_pass(smoothed, camera, fitted, peak)
             if new is fitted:
                 break
             a, b = outline_circle(camera, fitted), outline_circle(camera, new)
-            fitted = new
+            fitted, kept = new, points
             if max(math.hypot(b[0] - a[0], b[1] - a[1]), abs(b[2] - a[2])) < RIM_FIT_SETTLED_PX:
                 break
     cx, cy, r = outline_circle(camera, fitted)
-    if math.hypot(cx - cx0, cy - cy0) > 0.15 * r0 or abs(r - r0) > 0.15 * r0:
+    if kept is None or math.hypot(cx - cx0, cy - cy0) > 0.15 * r0 or abs(r - r0) > 0.15 * r0:
         return sphere
-    return fitted
+    return dataclasses.replace(fitted, outline_sigma_px=outline_centre_sigma_px(camera, fitted, *kept))
 
 
-def _outer_rim_pass(smoothed: np.ndarray, camera: Camera, sphere: Sphere, peak: bool = False) -> Sphere:
+def _outer_rim_pass(smoothed: np.ndarray, camera: Camera, sphere: Sphere, peak: bool = False
+                    ) -> tuple[Sphere, tuple[np.ndarray, np.ndarray] | None]:
     """One pass of :func:`outer_rim_fit`. Where a chrome sphere's rim mirrors what lies
     right beside it (the floor it stands on and its own contact shadow, below it) the
     rim shows no edge, and the strongest edge near it is a reflection inside (the
@@ -981,13 +984,14 @@ def _outer_rim_pass(smoothed: np.ndarray, camera: Camera, sphere: Sphere, peak: 
     rule, and the outline refitted until the set of points settles (twice, the second
     time searching a narrower band around the new outline). Returns ``sphere`` itself
     when fewer than 30% of the radial lines would remain, or the outline would move or
-    change its radius by more than 15% of the radius (a different circle)."""
+    change its radius by more than 15% of the radius (a different circle). Also returns the
+    edge points the fit kept (``None`` with ``sphere``)."""
     cx0, cy0, r0 = outline_circle(camera, sphere)
     fitted = sphere
     for band in (2.0, 1.5):
         x, y, _ = edge_points(smoothed, camera, fitted, band, peak=peak)
         if x.size < 0.3 * EDGE_ANGLES:
-            return sphere
+            return sphere, None
         keep = np.ones(x.size, bool)
         dist = _outline_distance(camera, fitted, x, y)
         if band == 2.0 and (dist >= -ON_OUTLINE_PX).sum() >= 0.3 * EDGE_ANGLES:
@@ -998,7 +1002,7 @@ def _outer_rim_pass(smoothed: np.ndarray, camera: Camera, sphere: Sphere, peak: 
             try:
                 fitted = fit_sphere(camera, x[keep], y[keep], robust=False)
             except ProbeError:
-                return sphere
+                return sphere, None
         for _ in range(10):
             dist = _outline_distance(camera, fitted, x, y)
             kept = dist[keep]
@@ -1006,18 +1010,18 @@ def _outer_rim_pass(smoothed: np.ndarray, camera: Camera, sphere: Sphere, peak: 
             new = ((dist >= -CHROME_INSIDE_PX - ON_OUTLINE_PX)
                    & (dist <= max(REJECT_MIN_PX, REJECT_SIGMAS * mad) + ON_OUTLINE_PX))
             if new.sum() < 0.3 * EDGE_ANGLES:
-                return sphere
+                return sphere, None
             if np.array_equal(new, keep):
                 break
             keep = new
             try:
                 fitted = fit_sphere(camera, x[keep], y[keep], robust=False)
             except ProbeError:
-                return sphere
+                return sphere, None
     cx, cy, r = outline_circle(camera, fitted)
     if math.hypot(cx - cx0, cy - cy0) > 0.15 * r0 or abs(r - r0) > 0.15 * r0:
-        return sphere
-    return dataclasses.replace(fitted, outline_sigma_px=outline_centre_sigma_px(camera, fitted, x[keep], y[keep]))
+        return sphere, None
+    return fitted, (x[keep], y[keep])
 
 
 def _grow_once(image: np.ndarray, camera: Camera, cand: dict, smoothed: np.ndarray) -> list[dict]:
