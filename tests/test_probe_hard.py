@@ -956,6 +956,48 @@ def test_every_radius_that_passes_the_screen_is_refined(monkeypatch):
     assert abs(chrome["circle"][2] - r) < 0.5
 
 
+def _mirror_with_an_arc_by_a_dark_rim(arc_deg):
+    """A 79 px chrome sphere whose lower half lies on a background as dark as its rim
+    mirrors there (no outline edge), with a bright reflection band at 0.80-0.90 of its
+    radius, 25 deg either side of ``arc_deg`` (image angle, y up): psm_spheres' chrome.10
+    (the ball beside a dark hill, a window's arc inside its rim). Returns
+    ``(8-bit image, cam, true circle)``."""
+    cam = pg.Camera.from_fov(200, 200, 40.0)
+    sphere = _sphere_at(cam, 100.0, 100.0, 16.0)
+    circle = detect.outline_circle(cam, sphere)
+
+    def arc(s):
+        rf = s["reflect"]
+        rho = np.sqrt(np.clip((1.0 - rf[..., 2]) / 2.0, 0.0, 1.0))    # image radius / outline radius
+        off = (np.degrees(np.arctan2(-rf[..., 1], rf[..., 0])) - arc_deg + 180.0) % 360.0 - 180.0
+        return np.where((rho > 0.8) & (rho < 0.9) & (np.abs(off) < 25.0), 0.5, 0.0)
+    to_light = np.array([0.3, 0.4, 0.87])
+    i0 = _render(cam, sphere, to_light, extra=arc, background=0.0, clip=False)
+    i1 = _render(cam, sphere, to_light, extra=arc, background=1.0, clip=False)
+    ys = np.mgrid[0:200, 0:200][0] + 0.5
+    back = ndimage.gaussian_filter(np.where(ys > circle[1], 0.085, 0.35), 0.6)[..., None]
+    return _quantise(np.clip(i0 + back * (i1 - i0), 0.0, 1.0)), cam, circle
+
+
+@pytest.mark.parametrize("arc_deg", [190.0, 200.0])
+def test_a_refinement_that_leaves_the_proposal_less_supported_is_tried_again_on_a_narrow_band(monkeypatch, arc_deg):
+    # the proposal is the true circle; refined on the wide band (12% of the radius) the fit
+    # takes the reflection band's outer edge, 8 px inside, for the dark lower-left rim and
+    # ends 3 px off, less supported than the proposal was; refined again from it on a narrow
+    # band it stays, and that is the sphere found
+    image, cam, (cx, cy, r) = _mirror_with_an_arc_by_a_dark_rim(arc_deg)
+    view = detect.detection_view(image, 1.0)[0]
+    smoothed = detect._edge_image(view)
+    proposal = pg.sphere_from_circle(cam, cx, cy, r)
+    wide, support = detect.refine_sphere(view, cam, proposal, smoothed, first_band_px=0.12 * r)
+    assert math.dist(detect.outline_circle(cam, wide)[:2], (cx, cy)) > 2.0      # the premise
+    assert support < detect.support_at(smoothed, cam, proposal)
+    monkeypatch.setattr(detect, "hough_circles", lambda img, *args: [(cx, cy, r)])
+    chrome = detect.pick_sphere(detect.find_spheres(image, cam, clip_level=1.0), "chrome")
+    assert math.dist(chrome["circle"][:2], (cx, cy)) < 0.5
+    assert abs(chrome["circle"][2] - r) < 0.5
+
+
 def test_a_small_sphere_with_a_highlight_is_proposed_when_the_proposals_overflow(monkeypatch):
     # strong-edged diffuse discs win the Hough votes; a faint small disc with one bright
     # pixel (a chrome sphere's highlight) still gets one of the last places
