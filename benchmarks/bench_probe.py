@@ -286,13 +286,14 @@ def evaluate_set(folder: str, rows: list, detect: list, qa_dir: str | None, rend
 def evaluate_psm(rows: list, qa_dir: str | None, folder: str = PSM) -> None:
     from relight.errors import ProbeError
     from relight.probe import ortho as probes
+    from relight.probe.batch import consensus_circle
     from relight.probe.detect import load_mask, read_probe_image
     from relight.probe.run import write_qa
 
     lights = np.loadtxt(os.path.join(folder, "lights.txt"), skiprows=1)
     mask_path = os.path.join(folder, "chrome.mask.png")
     mask = load_mask(mask_path)
-    highlights = []
+    highlights, found = [], []
     for i, truth in enumerate(lights):
         path = os.path.join(folder, f"chrome.{i}.png")
         res = _probe(path, chrome_mask=mask_path)
@@ -301,12 +302,24 @@ def evaluate_psm(rows: list, qa_dir: str | None, folder: str = PSM) -> None:
         if qa_dir:
             write_qa(os.path.join(qa_dir, f"psm_chrome.{i}.png"), res, title=f"psm chrome.{i}")
         try:
-            err = _angle_deg(_probe(path).entry["to_light_camera"], truth)
+            auto = _probe(path).entry
+            err = _angle_deg(auto["to_light_camera"], truth)
+            found.append(auto["chrome_circle"])
         except ProbeError:
             err = 180.0
+            found.append(None)
         rows.append(("psm_spheres, automatic", "front", err, path))
         rows.append(("psm_spheres, orthographic + mask (previous)", "front",
                      _angle_deg(probes.chrome_light_direction(read_probe_image(path)[0], mask), truth), path))
+    # one camera, one ball, twelve lights: the batch's --fixed-probe (relight.probe.batch), the
+    # circle the automatic detections agree on given to every image
+    shared, agree = consensus_circle(found, len(found))
+    for i, truth in enumerate(lights):
+        path = os.path.join(folder, f"chrome.{i}.png")
+        rows.append(("psm_spheres, automatic, fixed probe", "front",
+                     _angle_deg(_probe(path, chrome_circle=shared).entry["to_light_camera"], truth), path))
+    print(f"psm_spheres fixed probe: {agree} of {len(found)} automatic circles agree on "
+          f"({shared[0]:.1f}, {shared[1]:.1f}, r {shared[2]:.1f})")
     circle = res.entry["chrome_circle"]
     fit, at_mask, at_fit = reference_circle(lights, np.array(highlights), circle)
     print(f"psm_spheres reference: mask circle ({circle[0]:.1f}, {circle[1]:.1f}, r {circle[2]:.1f}) median "

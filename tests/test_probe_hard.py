@@ -750,6 +750,80 @@ def test_batch_bad_rows_give_one_line_naming_the_row_and_write_nothing(photo_fol
         assert not out.exists() and sorted(os.listdir(folder)) == ["black.png", "img0.png", "img1.png", "img2.png"]
 
 
+def test_the_consensus_circle_is_the_median_of_the_largest_agreeing_group():
+    from relight.errors import ProbeError
+    from relight.probe.batch import AGREE_FRACTION, consensus_circle
+    near = [(100.0, 80.0, 40.0), (100.6, 79.8, 40.4), (99.7, 80.3, 39.5), (101.0, 80.0, 40.2)]
+    far = [(60.0, 50.0, 12.0), (100.0, 80.0, 40.0 * (1 + 2 * AGREE_FRACTION)), None]
+    circle, agree = consensus_circle(near + far, images=7)
+    assert agree == 4
+    assert circle == pytest.approx((100.3, 80.0, 40.1))     # each coordinate's median over the group
+    with pytest.raises(ProbeError) as err:                  # 4 of 8 is not more than half
+        consensus_circle(near + far + [None], images=8)
+    assert "\n" not in str(err.value) and "4 agree" in str(err.value)
+
+
+def _fixed_probe_folder(tmp_path):
+    """Five 8-bit photographs of one mirror sphere standing still in a room of bright and
+    dark wedges, under five lights. Found image by image, the fourth's circle is a small
+    one inside (a reflection's); in the fifth the sphere mirrors a black room on a black
+    background (only its highlight shows: no outline to find). Returns ``(folder, csv with
+    no circles, lights, true circle)``."""
+    from relight.imageio import write_png
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 60.0, 9.0)
+    folder = tmp_path / "capture"
+    folder.mkdir()
+
+    def room(s):
+        rf = s["reflect"]
+        return np.where(np.sin(5.0 * np.arctan2(rf[..., 1], rf[..., 0])) > 0, 0.2, 0.0)
+
+    def black(s):
+        return -(0.08 + 0.04 * s["reflect"][..., 1])    # (less _render's dim sky)
+    lights = {}
+    for k, light in enumerate(((0.3, 0.4, 0.87), (-0.4, 0.2, 0.9), (-0.2, -0.3, 0.93), (0.5, 0.1, 0.86),
+                               (0.2, 0.3, 0.93))):
+        light = np.asarray(light) / np.linalg.norm(light)
+        dark = k == 4
+        write_png(folder / f"img{k}.png", _render(cam, sphere, light, extra=black if dark else room,
+                                                 background=0.0 if dark else 0.3))
+        lights[f"img{k}"] = light
+    csv_path = tmp_path / "capture.csv"
+    csv_path.write_text("image\n" + "".join(f"img{k}.png\n" for k in range(5)))
+    return folder, csv_path, lights, detect.outline_circle(cam, sphere)
+
+
+def test_a_fixed_probe_gives_every_image_the_circle_the_detections_agree_on(tmp_path, capsys):
+    # found image by image, the fourth image's light is far off and the fifth's sphere is
+    # not found; with --fixed-probe the other three agree, and the circle they agree on
+    # measures all five
+    from relight.probe.run import ProbeConfig, run_probe
+    folder, csv_path, lights, (cx, cy, r) = _fixed_probe_folder(tmp_path)
+    alone = run_probe(ProbeConfig(chrome=str(folder / "img3.png"), fov_deg=FOV_DEG)).entry
+    assert math.dist(alone["chrome_circle"][:2], (cx, cy)) > 0.1 * r                         # the premise
+    assert _angle(alone["to_light_camera"], lights["img3"]) > 20.0
+    out = tmp_path / "pred.json"
+    base = ["probe", "--folder", str(folder), "--circles", str(csv_path), "--fov", str(FOV_DEG), "--out", str(out)]
+    assert _run(base + ["--fixed-probe"]) == 0
+    entries = json.loads(out.read_text())["predictions"]
+    assert [e["id"] for e in entries] == [f"img{k}" for k in range(5)]
+    shared = entries[0]["chrome_circle_shared"]
+    assert (shared["agreeing"], shared["found"], shared["images"]) == (3, 4, 5)
+    assert math.dist(shared["circle"][:2], (cx, cy)) < 0.5 and abs(shared["circle"][2] - r) < 0.5
+    for e in entries:
+        assert e["chrome_found_by"].startswith("circle") and e["chrome_circle_shared"] == shared
+        assert _angle(e["to_light_camera"], lights[e["id"]]) < DIR_TOL_DEG
+    # one image, or too few agreeing: one line, exit 2, nothing written
+    out.unlink()
+    assert _run(["probe", "--chrome", str(folder / "img0.png"), "--fixed-probe", "--out", str(out)]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+    (tmp_path / "two.csv").write_text("image\nimg0.png\nimg4.png\n")
+    assert _run(base[:4] + [str(tmp_path / "two.csv")] + base[5:] + ["--fixed-probe"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--fixed-probe" in err[0] and not out.exists()
+
+
 # ------------------------------------------------------------------ the harder probe set's truth
 def test_specular_point_bisects_eye_and_light():
     from relight.verify.probe_scenes import specular_point

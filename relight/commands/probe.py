@@ -45,6 +45,10 @@ def add_commands(sub) -> None:
     p.add_argument("--circles", help="batch: CSV with a header row: image (file in --folder), optional "
                    "chrome_cx,chrome_cy,chrome_r (empty: found automatically), diffuse_cx,diffuse_cy,"
                    "diffuse_r (a diffuse sphere in the same image), id")
+    p.add_argument("--fixed-probe", action="store_true",
+                   help="batch: the chrome sphere stands still in every image (one camera, one probe, many "
+                   "lights): it is found in every row without a chrome circle, and the circle most of those "
+                   "detections agree on is given to each of them")
     proj = p.add_mutually_exclusive_group()
     proj.add_argument("--fov", type=field_of_view, help="perspective camera: horizontal field of view "
                       "(across the image width) in degrees")
@@ -98,11 +102,14 @@ def non_negative_px(text: str) -> float:
 
 
 def cmd_probe(args) -> int:
+    from relight.errors import ProbeError
     from relight.fileio import check_file_target, check_outputs
     from relight.predictions import write_predictions
     from relight.probe.run import ProbeConfig, run_probe, write_qa
     if args.folder or args.circles:
         return _cmd_batch(args)
+    if args.fixed_probe:
+        raise ProbeError("--fixed-probe is for a batch (--folder DIR --circles CSV)")
     inputs = [args.chrome, args.chrome_mask, args.diffuse, args.diffuse_mask]
     check_file_target(args.out)   # a folder given for a file: said as such, before the input rule
     if args.qa:
@@ -163,7 +170,7 @@ def _cmd_batch(args) -> int:
     base = ProbeConfig(chrome=rows[0].path, fov_deg=args.fov, focal_px=args.focal_px,
                        camera_tilt_deg=args.camera_tilt, linear=args.linear,
                        circle_tolerance_px=args.circle_tolerance, locator=args.locator)
-    entries = run_batch(rows, base, args.qa)
+    entries = run_batch(rows, base, args.qa, fixed_probe=args.fixed_probe)
     meta = {"camera_tilt_deg": args.camera_tilt if args.camera_tilt is not None else 0.0,
             "settings": {k: v for k, v in vars(args).items() if k != "func"}}
     if args.camera_tilt is None:
