@@ -25,7 +25,7 @@ __all__ = [
     "CHROME_MAX_BLOB_FRACTION", "CHROME_MIN_EXCESS", "CHROME_MIN_CLIPPED_CONTRAST", "CLIP_FRACTION", "DIFFUSE_MAX_RESIDUAL", "TRIM_FRACTION",
     "read_probe_image", "load_mask", "edge_points", "refine_sphere", "sphere_features", "hough_circles",
     "camera_exposure", "exposed_like_a_camera", "detection_view", "HDR_CLIP_SHARE", "find_spheres", "is_chrome", "is_diffuse", "pick_sphere",
-    "outline_fit_px", "constrained_refinement", "GROW_RADII", "GROW_FINE_RADII", "GROW_MIN_SUPPORT_RATIO", "GROW_ROUNDS",
+    "outline_fit_px", "support_at", "NARROW_FIRST_BAND_PX", "constrained_refinement", "GROW_RADII", "GROW_FINE_RADII", "GROW_MIN_SUPPORT_RATIO", "GROW_ROUNDS",
     "PICK_HIGHLIGHT_WEIGHT", "PICK_RADIUS_WEIGHT", "CHROME_INSIDE_PX", "ON_OUTLINE_PX", "RIM_FIT_ROUNDS", "RIM_FIT_SETTLED_PX", "outer_rim_fit", "DETECTION_MARGIN",
     "rival_sphere", "share_the_rest", "CHROME_RIM_SHIFT", "PIXEL_BLUR_PX", "edge_blur_px", "chrome_rim_shift_px",
     "outline_from_rim", "RIM_BIAS_PX", "RIM_BIAS_ARC_DEG", "outline_centre_sigma_px", "with_centre_error",
