@@ -1114,8 +1114,9 @@ def test_the_hough_proposers_take_turns(monkeypatch):
     # the classic proposer's many weak circles must not queue the fine one's best behind them
     import cv2
     lists = [[(20.0, 20.0, 10.0)], [(40.0 + 20 * k, 60.0, 9.0) for k in range(5)], [(130.0, 90.0, 8.0)]]
-    calls = iter(lists)
-    monkeypatch.setattr(cv2, "HoughCircles", lambda *a, **k: np.asarray([next(calls)], np.float32))
+    calls = iter(lists)     # (the classic one over octaves of radii, called after them, finds none)
+    monkeypatch.setattr(cv2, "HoughCircles",
+                        lambda *a, **k: (lambda c: None if c is None else np.asarray([c], np.float32))(next(calls, None)))
     monkeypatch.setattr(detect, "MAX_CANDIDATES", 3)
     monkeypatch.setattr(detect, "SPOT_PROPOSALS", 0)
     got = detect.hough_circles(np.full((H, W, 3), 0.3))
