@@ -641,7 +641,8 @@ def hough_circles(image: np.ndarray, clip_level: float | None = None, screen=Non
     found = []
     alt = cv2.HoughCircles(cv2.GaussianBlur(gray, (0, 0), 1.5), cv2.HOUGH_GRADIENT_ALT, dp=1.5,
                            minDist=rmin, param1=100, param2=0.7, minRadius=rmin, maxRadius=rmax)
-    classic = cv2.HoughCircles(cv2.GaussianBlur(gray, (0, 0), 2.5), cv2.HOUGH_GRADIENT, dp=1,
+    blurred = cv2.GaussianBlur(gray, (0, 0), 2.5)
+    classic = cv2.HoughCircles(blurred, cv2.HOUGH_GRADIENT, dp=1,
                                minDist=rmin, param1=50, param2=20, minRadius=rmin, maxRadius=rmax)
     # small spheres: a finer blur and fewer votes (a 10 px circle has few edge pixels)
     fine = cv2.HoughCircles(cv2.GaussianBlur(gray, (0, 0), 1.2), cv2.HOUGH_GRADIENT, dp=1,
@@ -656,7 +657,7 @@ def hough_circles(image: np.ndarray, clip_level: float | None = None, screen=Non
     lo = rmin
     while lo < rmax:
         hi = min(2 * lo, rmax)
-        band = cv2.HoughCircles(cv2.GaussianBlur(gray, (0, 0), 2.5), cv2.HOUGH_GRADIENT, dp=1,
+        band = cv2.HoughCircles(blurred, cv2.HOUGH_GRADIENT, dp=1,
                                 minDist=lo, param1=50, param2=20, minRadius=lo, maxRadius=hi)
         if band is not None:
             octaves.append(band[0])
