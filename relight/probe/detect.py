@@ -394,7 +394,6 @@ def refine_sphere(image: np.ndarray, camera: Camera, guess: Sphere, smoothed: np
         smoothed = _edge_image(image)
     r = outline_circle(camera, guess)[2]
     sphere = guess
-    support = 0.0
     for band in (first_band_px or max(3.0, 0.15 * r), 3.0, 2.0):
         x, y, _ = edge_points(smoothed, camera, sphere, band)
         if x.size < 0.2 * EDGE_ANGLES:
@@ -408,18 +407,17 @@ def refine_sphere(image: np.ndarray, camera: Camera, guess: Sphere, smoothed: np
                 break
             x, y = x[keep], y[keep]
             sphere = fit_sphere(camera, x, y, robust=False)     # outliers are gone
-    # support: where the strongest edge in a wide band is the fitted outline itself (a
-    # narrow band would find some edge near any circle drawn on a textured image)
-    wide = max(4.0, SUPPORT_BAND_FRACTION * r)
-    support = _edge_support(camera, sphere, *edge_points(smoothed, camera, sphere, wide, prior=False)[:2])
-    return sphere, support
+    return sphere, support_at(smoothed, camera, sphere, r)
 
 
-def support_at(smoothed: np.ndarray, camera: Camera, sphere: Sphere) -> float:
-    """``sphere``'s edge support as :func:`refine_sphere` states it: the share of radial
+def support_at(smoothed: np.ndarray, camera: Camera, sphere: Sphere, radius_px: float | None = None) -> float:
+    """``sphere``'s edge support, as :func:`refine_sphere` states it: the share of radial
     lines whose strongest edge within :data:`SUPPORT_BAND_FRACTION` of the radius (at least
-    4 px) lies within :data:`EDGE_INLIER_PX` of its outline."""
-    wide = max(4.0, SUPPORT_BAND_FRACTION * outline_circle(camera, sphere)[2])
+    4 px; ``radius_px``, else the sphere's own) lies within :data:`EDGE_INLIER_PX` of its
+    outline. The band is wide: a narrow one would find some edge near any circle drawn on
+    a textured image."""
+    r = outline_circle(camera, sphere)[2] if radius_px is None else radius_px
+    wide = max(4.0, SUPPORT_BAND_FRACTION * r)
     return _edge_support(camera, sphere, *edge_points(smoothed, camera, sphere, wide, prior=False)[:2])
 
 
