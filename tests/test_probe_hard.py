@@ -818,12 +818,14 @@ def test_a_fixed_probe_gives_every_image_the_circle_the_detections_agree_on(tmp_
     # found image by image, the fifth image's sphere is not found (the batch stops there,
     # writing nothing); with --fixed-probe the other four agree, and the circle they agree
     # on measures all five
+    from relight.probe.run import qa_caption
     folder, csv_path, lights, (cx, cy, r) = _fixed_probe_folder(tmp_path)
     out = tmp_path / "pred.json"
     base = ["probe", "--folder", str(folder), "--circles", str(csv_path), "--fov", str(FOV_DEG), "--out", str(out)]
     assert _run(base) == 2 and "row 6" in capsys.readouterr().err and not out.exists()     # the premise
-    assert _run(base + ["--fixed-probe"]) == 0
+    assert _run(base + ["--fixed-probe", "--qa", str(tmp_path / "qa")]) == 0
     entries = json.loads(out.read_text())["predictions"]
+    assert sorted(p.name for p in (tmp_path / "qa").iterdir()) == [f"img{k}.png" for k in range(5)]
     assert [e["id"] for e in entries] == [f"img{k}" for k in range(5)]
     shared = entries[0]["chrome_circle_shared"]
     assert (shared["agreeing"], shared["found"], shared["images"]) == (4, 4, 5)
@@ -831,6 +833,10 @@ def test_a_fixed_probe_gives_every_image_the_circle_the_detections_agree_on(tmp_
     for e in entries:
         assert e["chrome_found_by"].startswith("circle") and e["chrome_circle_shared"] == shared
         assert _angle(e["to_light_camera"], lights[e["id"]]) < DIR_TOL_DEG
+        # the overlay's caption says whose circle it is (not just "as given")
+        assert "the batch's fixed probe" in qa_caption(e)[-1] and "4 agreeing" in qa_caption(e)[-1]
+    assert not any("fixed probe" in line for line in qa_caption({k: v for k, v in entries[0].items()
+                                                                  if k != "chrome_circle_shared"}))
     # one image, or too few agreeing: one line, exit 2, nothing written
     out.unlink()
     assert _run(["probe", "--chrome", str(folder / "img0.png"), "--fixed-probe", "--out", str(out)]) == 2

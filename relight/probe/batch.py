@@ -193,13 +193,13 @@ def run_batch(rows: list[BatchRow], base, qa_folder: str | None = None, progress
         if row.chrome_circle is None and record is not None:
             entries[-1]["chrome_circle_shared"] = record
         if qa_folder is not None:
-            results.append((row, result))
+            results.append((row, result, entries[-1]))
     if qa_folder is not None:
         from relight.fileio import atomic_folder
 
         def write_all(tmp):
             os.makedirs(tmp, exist_ok=True)
-            for row, result in results:
-                write_qa(os.path.join(tmp, f"{row.ident}.png"), result, title=row.ident)
+            for row, result, entry in results:
+                write_qa(os.path.join(tmp, f"{row.ident}.png"), result, title=row.ident, entry=entry)
         atomic_folder(qa_folder, write_all)
     return entries

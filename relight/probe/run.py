@@ -19,6 +19,7 @@ __all__ = [
     "ProbeConfig",
     "ProbeResult",
     "locate_sphere",
+    "qa_caption",
     "run_probe",
     "write_qa",
 ]
@@ -355,7 +356,36 @@ def _draw(canvas, camera: Camera, sphere: Sphere | None, highlight: geom.Highlig
 CHROME_BGR, DIFFUSE_BGR, RIVAL_BGR = (0, 255, 0), (255, 255, 0), (0, 255, 255)
 
 
-def write_qa(path: str, result: ProbeResult, title: str = "") -> None:
+def qa_caption(e: dict, title: str = "") -> list[str]:
+    """The QA overlay's caption lines for entry ``e``: the direction, the quality figures and
+    the error budget, with how the chrome circle was had (a batch's shared circle named as
+    such, with how many of its images agreed on it)."""
+    d = e["to_light_camera"]
+    lines = [title, f"to_light_camera ({d[0]:+.3f}, {d[1]:+.3f}, {d[2]:+.3f})  pan {e['pan_deg']:.1f}  "
+             f"tilt {e['tilt_deg']:.1f}  [{e['method']}; {e['projection']}]"]
+    if "quality" in e:
+        q = e["quality"]
+        lines.append(f"uncertainty ~{e['quality_deg']:.2f} deg; highlight {q['highlight_pixels']} px"
+                     f"{' clipped' if q['clipped'] else ''}; view angle {q['view_angle_deg']:.0f} deg; "
+                     f"outline rms {q['outline_rms_px']:.2f} px; ambiguity {q['ambiguity']:.2f}")
+        b = q["error_budget_deg"]
+        detection = f"  detection {b['detection_deg']:.2f}" if "detection_deg" in b else ""
+        lines.append(f"error budget (deg, 1 sigma): circle {b['circle_deg']:.2f}  highlight {b['highlight_deg']:.2f}"
+                     f"  camera model {b['camera_deg']:.2f}{detection}  -> total {b['total_deg']:.2f}"
+                     f"  [chrome {e['chrome_found_by']}"
+                     + (f", locator p {e['locator']['probability']:.2f}"
+                        if e.get("locator", {}).get("probability") is not None else "")
+                     + (f", locator left over {e['locator']['left_over']:.2f}"
+                        if "left_over" in e.get("locator", {}) else "") + "]")
+    if "chrome_circle_shared" in e:
+        shared = e["chrome_circle_shared"]
+        c = shared["circle"]
+        lines.append(f"chrome circle: the batch's fixed probe ({c[0]:.1f}, {c[1]:.1f}, r {c[2]:.1f}), "
+                     f"found in {shared['found']} of {shared['images']} images, {shared['agreeing']} agreeing")
+    return lines
+
+
+def write_qa(path: str, result: ProbeResult, title: str = "", entry: dict | None = None) -> None:
     """QA overlay PNG: the image with the outlines (green chrome, cyan diffuse), the
     highlight (magenta cross; a rival candidate, when the choice was ambiguous, as a
     yellow x; a rival circle of an ambiguous detection in yellow), the normal there (orange, from the sphere's centre) and the reflected
@@ -393,30 +423,13 @@ def write_qa(path: str, result: ProbeResult, title: str = "") -> None:
     right = np.concatenate(tiles, 0)
     height = max(full.shape[0], right.shape[0])
     # wide enough for the caption lines (about 6 px a character at this font size)
-    panel = np.zeros((height + 90, max(full.shape[1] + right.shape[1] + 4, 800), 3), np.uint8)
-    panel[:full.shape[0], :full.shape[1]] = full
-    panel[:right.shape[0], full.shape[1] + 4:full.shape[1] + 4 + right.shape[1]] = right
-    e = result.entry
-    d = e["to_light_camera"]
     if exposure > 1.5:
         title = f"{title}  (shown {exposure:.0f}x brighter)"
-    lines = [title, f"to_light_camera ({d[0]:+.3f}, {d[1]:+.3f}, {d[2]:+.3f})  pan {e['pan_deg']:.1f}  "
-             f"tilt {e['tilt_deg']:.1f}  [{e['method']}; {e['projection']}]"]
-    if "quality" in e:
-        q = e["quality"]
-        lines.append(f"uncertainty ~{e['quality_deg']:.2f} deg; highlight {q['highlight_pixels']} px"
-                     f"{' clipped' if q['clipped'] else ''}; view angle {q['view_angle_deg']:.0f} deg; "
-                     f"outline rms {q['outline_rms_px']:.2f} px; ambiguity {q['ambiguity']:.2f}")
-        b = q["error_budget_deg"]
-        detection = f"  detection {b['detection_deg']:.2f}" if "detection_deg" in b else ""
-        lines.append(f"error budget (deg, 1 sigma): circle {b['circle_deg']:.2f}  highlight {b['highlight_deg']:.2f}"
-                     f"  camera model {b['camera_deg']:.2f}{detection}  -> total {b['total_deg']:.2f}"
-                     f"  [chrome {e['chrome_found_by']}"
-                     + (f", locator p {e['locator']['probability']:.2f}"
-                        if e.get("locator", {}).get("probability") is not None else "")
-                     + (f", locator left over {e['locator']['left_over']:.2f}"
-                        if "left_over" in e.get("locator", {}) else "") + "]")
-    for i, text in enumerate(t for t in lines if t):
+    lines = [t for t in qa_caption(result.entry if entry is None else entry, title) if t]
+    panel = np.zeros((height + 10 + 20 * len(lines), max(full.shape[1] + right.shape[1] + 4, 800), 3), np.uint8)
+    panel[:full.shape[0], :full.shape[1]] = full
+    panel[:right.shape[0], full.shape[1] + 4:full.shape[1] + 4 + right.shape[1]] = right
+    for i, text in enumerate(lines):
         cv2.putText(panel, text, (6, height + 18 + 20 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1,
                     cv2.LINE_AA)
     from relight.imageio import write_srgb8
