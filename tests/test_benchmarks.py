@@ -11,7 +11,10 @@ import shlex
 import subprocess
 import sys
 
+import numpy as np
 import pytest
+
+from conftest import load_script
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RESULTS = os.path.join(REPO, "docs", "results.md")   # the benchmark table (README links it)
@@ -173,3 +176,29 @@ def test_quick_command_runs(argv, tmp_path):
     r = _run(argv, timeout=RUN_TIMEOUT_S)
     assert r.returncode == 0, f"{' '.join(argv)}: {r.stderr[-2000:]}"
     assert "Traceback" not in r.stderr
+
+
+@pytest.mark.parametrize("n", [20, 60, 61])
+def test_a_probe_median_is_judged_by_its_order_statistic_interval(n):
+    # the distribution-free interval of a median: the l-th and (n + 1 - l)-th smallest of n,
+    # l - 1 the largest count with a binomial (n, 1/2) probability of at most 2.5% of falling
+    # at or below it (the closed form), whatever the values and their order
+    from scipy import stats
+    verdict = load_script("benchmarks/bench_probe.py").median_verdict
+    l = max(j for j in range(n) if stats.binom.cdf(j, n, 0.5) <= 0.025) + 1
+    errs = np.random.default_rng(n).permutation(np.geomspace(0.1, 20.0, n))
+    ordered = np.sort(errs)
+    lo, hi = ordered[l - 1], ordered[n - l]
+    assert verdict(errs, 0.5 * (lo + hi)) == (lo, hi, "undecided")
+    assert verdict(errs, hi)[2] == "met" and verdict(errs, 1.01 * hi)[2] == "met"
+    assert verdict(errs, 0.99 * lo)[2] == "not met"
+
+
+def test_the_probe_report_gives_each_target_row_its_verdict(capsys):
+    bench = load_script("benchmarks/bench_probe.py")
+    rows = [("cycles png, circle given", "front", e, f"probe{i}.cycles.png")
+            for i, e in enumerate([0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 6.0] * 3)]
+    bench.report(rows, [])
+    line = next(t for t in capsys.readouterr().out.splitlines() if t.startswith("cycles png, circle given"))
+    lo, hi, verdict = bench.median_verdict([r[2] for r in rows], 1.0)
+    assert verdict == "met" and f"median 95% [{lo:.2f}, {hi:.2f}]: met" in line and "3 over 5" in line
