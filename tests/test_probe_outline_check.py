@@ -1,6 +1,7 @@
 """The learned outline check (relight.probe.outline_check) and the detector's second start from it."""
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 
@@ -209,3 +210,48 @@ def test_shipped_check_brings_candidates_back_onto_the_sphere_in_fresh_renders()
         hits += bool(np.all(np.hypot(got[:, 0] - tx, got[:, 1] - ty) <= 0.1 * tr)
                      and np.all(np.abs(np.log(got[:, 2] / tr)) <= 0.1))
     assert hits >= 5
+
+
+def test_a_disputed_outline_states_half_the_two_outlines_distance():
+    from relight.probe import geometry as pg
+    cam = pg.Camera.from_fov(160, 120, 40.0)
+    sphere = dataclasses.replace(detect.sphere_from_circle(cam, 80.0, 60.0, 15.0), outline_sigma_px=0.2)
+    circle = detect.outline_circle(cam, sphere)
+    seen = (circle[0] + 1.2, circle[1] - 1.6, circle[2] + 0.5)      # centres 2.0 px apart, radii 0.5
+    cand = {"circle": circle, "check_gap": detect.CHECK_DISPUTE + 0.01, "check_circle": seen}
+    got, apart = detect.disputed_outline(sphere, cand)
+    assert apart == pytest.approx(2.5, abs=1e-9)
+    assert got.outline_sigma_px == pytest.approx(math.hypot(0.2, 1.25), abs=1e-9)
+    assert got.centre == sphere.centre and got.radius == sphere.radius
+    # within the margin, with no opinion, or not asked: the outline as it was
+    for c in ({**cand, "check_gap": detect.CHECK_DISPUTE}, {**cand, "check_gap": None}, {"circle": circle}):
+        assert detect.disputed_outline(sphere, c) == (sphere, None)
+    # an outline that stated no error of its own gets half the distance
+    bare = dataclasses.replace(sphere, outline_sigma_px=None)
+    assert detect.disputed_outline(bare, cand)[0].outline_sigma_px == pytest.approx(1.25, abs=1e-9)
+
+
+def test_a_found_outline_the_check_disputes_widens_the_stated_uncertainty_not_the_direction(monkeypatch, tmp_path):
+    from relight.imageio import write_png
+    from relight.probe.run import ProbeConfig, qa_caption, run_probe
+    from test_probe_hard import FOV_DEG
+    cam, sphere, image = _scene()
+    path = tmp_path / "mirror.png"
+    write_png(path, image)
+    truth = detect.outline_circle(cam, sphere)
+    runs = {}
+    for name, move in (("agrees", 0.0), ("disputes", 3.0)):
+        # the check puts the sphere where the candidate is, or 3 px to the right of it
+        monkeypatch.setattr(oc, "check_circles", lambda seen, circles, move=move: np.asarray(circles, float) + [move, 0, 0])
+        runs[name] = run_probe(ProbeConfig(chrome=str(path), fov_deg=FOV_DEG)).entry
+    agrees, disputes = runs["agrees"], runs["disputes"]
+    assert math.dist(agrees["chrome_circle"][:2], truth[:2]) < 0.5          # the premise: the sphere is found
+    assert "outline_disputed_px" not in agrees
+    assert disputes["outline_disputed_px"] == pytest.approx(3.0, abs=0.01)
+    # (the check's second start fits the outline again from its circle and lands where it was)
+    assert math.degrees(math.acos(min(1.0, float(np.dot(disputes["to_light_camera"], agrees["to_light_camera"]))))) < 0.01
+    assert disputes["quality"]["outline_sigma_px"] == pytest.approx(
+        math.hypot(agrees["quality"]["outline_sigma_px"], 1.5), abs=2e-4)
+    assert disputes["quality_deg"] > 2.0 * agrees["quality_deg"]
+    assert any("disputed" in line for line in qa_caption(disputes))
+    assert not any("disputed" in line for line in qa_caption(agrees))

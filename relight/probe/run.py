@@ -154,6 +154,9 @@ def locate_sphere(image: np.ndarray, camera: Camera, kind: str, circle=None, mas
         rim = detect.chrome_rim_shift_px(view)
         report["rim_shift_px"] = round(rim, 4)
         sphere = detect.with_centre_error(view, camera, sphere)
+        sphere, apart = detect.disputed_outline(sphere, found)
+        if apart is not None:   # the learned outline check puts the sphere elsewhere
+            report["outline_disputed_px"] = round(apart, 3)
     if rival is not None and margin < detect.DETECTION_MARGIN:
         # another circle scores nearly as well: the detection is ambiguous (see run_probe)
         report.update(ambiguity=1.0 - margin / detect.DETECTION_MARGIN,
@@ -208,6 +211,8 @@ def run_probe(cfg: ProbeConfig) -> ProbeResult:
                     entry["locator"]["left_over"] = round(refinement["locator_left_over"], 4)
                 if "checked_from" in refinement:
                     entry["locator"]["outline_moved_from"] = [round(v, 2) for v in refinement["checked_from"]]
+            if "outline_disputed_px" in refinement:
+                entry["outline_disputed_px"] = refinement["outline_disputed_px"]
             if "rival" in refinement:
                 _detection_ambiguity(entry, result, hl, refinement, image, camera, clip, d_dir)
         elif refinement:
@@ -377,6 +382,9 @@ def qa_caption(e: dict, title: str = "") -> list[str]:
                         if e.get("locator", {}).get("probability") is not None else "")
                      + (f", locator left over {e['locator']['left_over']:.2f}"
                         if "left_over" in e.get("locator", {}) else "") + "]")
+    if "outline_disputed_px" in e:
+        lines.append(f"chrome outline disputed: the learned outline check puts it {e['outline_disputed_px']:.2f} px away "
+                     "(the circle term takes in half of that)")
     if "chrome_circle_shared" in e:
         shared = e["chrome_circle_shared"]
         c = shared["circle"]
