@@ -287,13 +287,13 @@ def disputed_outline(sphere: Sphere, cand: dict) -> tuple[Sphere, float | None]:
 
     Neither the edges nor the check is right every time. On the 780 Cycles scenes of the
     team-like and held-out sets (docs/probe-history.md, twenty-ninth round) the check
-    disputes 44 found outlines by that margin; 34 of them lie more than 0.5 px from the
-    true outline (of the 736 others, 33); yet the outline fitted where the check puts the
-    sphere is the better one on only 23 of the 44. Two estimates that far apart, with
-    nothing to choose between them, leave the outline known to about half their distance
-    either way: stated so, the direction's error lies within twice its stated uncertainty
-    on 98.8% of the 780 (97.9% before; within it, 87.8% against 84.6%). The direction is
-    not changed."""
+    disputes 39 found outlines by that margin, 29 of them more than 0.5 px from the true
+    outline (of the 741 others, 38); yet, asked offline, the outline fitted where the check
+    puts the sphere was the better one on only 23 of 44 disputed outlines. Two estimates
+    that far apart, with nothing to choose between them, leave the outline known to about
+    half their distance either way: stated so, the direction's error lies within twice its
+    stated uncertainty on 98.8% of the 780 (97.9% before; within it, 87.9% against 84.6%).
+    The direction is not changed."""
     gap, seen = cand.get("check_gap"), cand.get("check_circle")
     if gap is None or seen is None or gap <= CHECK_DISPUTE:
         return sphere, None
