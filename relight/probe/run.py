@@ -430,10 +430,10 @@ def write_qa(path: str, result: ProbeResult, title: str = "", entry: dict | None
         tiles.append(tile)
     right = np.concatenate(tiles, 0)
     height = max(full.shape[0], right.shape[0])
-    # wide enough for the caption lines (about 6 px a character at this font size)
     if exposure > 1.5:
         title = f"{title}  (shown {exposure:.0f}x brighter)"
     lines = [t for t in qa_caption(result.entry if entry is None else entry, title) if t]
+    # wide enough for the caption lines (about 6 px a character at this font size), a row each
     panel = np.zeros((height + 10 + 20 * len(lines), max(full.shape[1] + right.shape[1] + 4, 800), 3), np.uint8)
     panel[:full.shape[0], :full.shape[1]] = full
     panel[:right.shape[0], full.shape[1] + 4:full.shape[1] + 4 + right.shape[1]] = right
