@@ -58,7 +58,7 @@ from relight.probe.footprint import BH_COEFFICIENTS, BH_SPAN_PX  # noqa: E402
 PSM = os.path.join(shared_data_dir(), "psm_spheres")   # $RELIGHT_SHARED_DATA, else next to the checkout
 TARGETS = {"cycles png, circle given": (1.0, 5.0), "cycles png, circles given (+gray)": (1.0, 5.0),
            "cycles png, automatic": (1.5, 8.0),
-           "psm_spheres, mask": (2.0, None)}
+           "psm_spheres, mask": (2.0, None), "psm_spheres, automatic, fixed probe": (2.0, None)}
 PNG_CLIP_SHARE = 0.02
 MARKED_PX = 0.5        # a hand-marked circle: its centre off by this rms per axis, its radius by 0.6 of it
 
