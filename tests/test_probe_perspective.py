@@ -370,3 +370,31 @@ def test_a_found_chrome_outline_states_its_centres_error(small_render, tmp_path)
     sphere = pg.sphere_from_circle(cam, *entry[0]["chrome_circle"])
     per_px = pg.error_budget(cam, sphere, q, circle_px=1.0)["circle_deg"]
     assert q["error_budget_deg"]["circle_deg"] == pytest.approx((0.05 + q["outline_sigma_px"]) * per_px, rel=0.02)
+
+
+@pytest.mark.parametrize("seed", [0, 4])
+def test_a_mirror_of_an_evenly_lit_world_is_found(tmp_path, seed):
+    """A chrome sphere mirroring a uniform sky against a dark background is a flat disc
+    around its highlight: a smooth shading fits it as well as a diffuse ball (the premise,
+    below), so it was not taken for chrome (these two scenes were "no chrome sphere found").
+    Its flatness and the highlight a diffuse sphere cannot explain tell it apart; the gray
+    ball beside it, shaded by the light, is still not chrome."""
+    from relight.imageio import write_png
+    from relight.verify import probe_scenes
+    scene = probe_scenes.sample_probe_scene(seed, width=256, height=192, front=True, fov_deg=40.0)  # no clutter
+    path = tmp_path / "flat.png"
+    write_png(path, probe_scenes.render_probe_scene(scene, spp=16))
+    image, clip, _ = probe_detect.read_probe_image(str(path))
+    view = probe_detect.detection_view(image, clip)[0]
+    cam = pg.Camera.from_fov(256, 192, scene.fov_deg)
+    chrome = probe_detect.sphere_features(view, cam, pg.sphere_from_circle(cam, *scene.circle("chrome")), clip)
+    gray = probe_detect.sphere_features(view, cam, pg.sphere_from_circle(cam, *scene.circle("gray")), clip)
+    assert chrome["residual"] < probe_detect.CHROME_MIN_RESIDUAL               # the premise: a smooth shading fits it
+    assert chrome["flatness"] <= probe_detect.CHROME_FLAT < gray["flatness"]
+    assert probe_detect.is_chrome(chrome) and not probe_detect.is_chrome(gray)
+    out = tmp_path / "p.json"
+    assert main(["probe", "--chrome", str(path), "--fov", str(scene.fov_deg), "--out", str(out)]) == 0
+    entry = json.loads(out.read_text())["predictions"][0]
+    cx, cy, r = scene.circle("chrome")
+    assert math.dist(entry["chrome_circle"][:2], (cx, cy)) < DETECT_CIRCLE_TOL_PX
+    assert _angle(entry["to_light_camera"], scene.to_light) < RENDER_DIR_TOL_DEG

@@ -22,7 +22,7 @@ __all__ = [
     "EDGE_SIGMA_PX", "EDGE_SIGMA_MAX_PX", "EDGE_NOISE_LEFT", "edge_sigma_px", "image_noise", "EDGE_ANGLES", "EDGE_MIN_FRACTION", "REJECT_ROUNDS", "REJECT_SIGMAS", "REJECT_MIN_PX",
     "EDGE_INLIER_PX", "SUPPORT_BAND_FRACTION", "MIN_EDGE_SUPPORT", "MIN_RADIUS_FRACTION",
     "MAX_RADIUS_FRACTION", "MAX_CANDIDATES", "SPOT_PROPOSALS", "CLIPPED_SPOT_PROPOSALS", "CHROME_MIN_CONTRAST",
-    "CHROME_MAX_BLOB_FRACTION", "CHROME_MIN_EXCESS", "CHROME_MIN_CLIPPED_CONTRAST", "CLIP_FRACTION", "DIFFUSE_MAX_RESIDUAL", "TRIM_FRACTION",
+    "CHROME_MAX_BLOB_FRACTION", "CHROME_MIN_EXCESS", "CHROME_FLAT", "CHROME_FLAT_EXCESS", "CHROME_MIN_CLIPPED_CONTRAST", "CLIP_FRACTION", "DIFFUSE_MAX_RESIDUAL", "TRIM_FRACTION",
     "read_probe_image", "load_mask", "edge_points", "refine_sphere", "sphere_features", "hough_circles",
     "camera_exposure", "exposed_like_a_camera", "detection_view", "HDR_CLIP_SHARE", "find_spheres", "is_chrome", "is_diffuse", "pick_sphere",
     "outline_fit_px", "support_at", "NARROW_FIRST_BAND_PX", "constrained_refinement", "GROW_RADII", "GROW_FINE_RADII", "GROW_MIN_SUPPORT_RATIO", "GROW_ROUNDS",
@@ -111,6 +111,10 @@ CHROME_MIN_EXCESS = 0.15       # above what one light on a diffuse sphere gives,
 CHROME_MIN_RESIDUAL = 0.25     # and no smooth shading model fits it (it mirrors its surroundings: a
                                # diffuse ball with a hot pixel fits within 0.2; on the probe set
                                # chrome spheres measure 0.29-1.9, gray and coloured balls 0.02-0.48)
+CHROME_FLAT = 0.15             # ... unless the sphere is a flat disc (its pixels' 10th-90th percentile spread at most
+                               # 15% of their median: a mirror of an evenly lit world; a diffuse ball under a light
+                               # shades across it, 0.7-9 on the probe set) ...
+CHROME_FLAT_EXCESS = 0.8       # ... whose highlight one light on a diffuse sphere leaves 80% unexplained
 HDR_CLIP_SHARE = 0.02          # detection in a linear HDR image: exposed so that its brightest 2% clip
 DIFFUSE_MAX_RESIDUAL = 0.3     # diffuse: a shading model fits within 30% rms
 TRIM_FRACTION = 0.01           # ... leaving out the worst 1% of pixels (glints, hot pixels)
@@ -566,12 +570,14 @@ def sphere_features(image: np.ndarray, camera: Camera, sphere: Sphere, clip_leve
     there, outside the pixels the other figures read; seen 120 deg from the view, 0.13
     of the radius from the outline, 1.3 px on a 10 px sphere), and ``clip_contrast``, the
     clip level over the median luminance: a clipped highlight's contrast is at least that,
-    whatever it really is."""
+    whatever it really is. ``flatness``: the 10th-90th percentile spread of the sphere's
+    pixels over their median (:func:`is_chrome`)."""
     box, s = sphere_surface(camera, sphere)
     x0, y0, x1, y1 = box
     usable = usable_pixels(camera, sphere, box, s, 1.5) & (s["cos_view"] >= 0.45)
     if usable.sum() < 30:
-        return {"contrast": 0.0, "residual": 1.0, "mean": 0.0, "clipped": False, "clip_contrast": 0.0}
+        return {"contrast": 0.0, "residual": 1.0, "mean": 0.0, "clipped": False, "clip_contrast": 0.0,
+                "flatness": 1.0}
     crop = np.asarray(image, np.float64)[y0:y1, x0:x1, :3]
     searched = usable_pixels(camera, sphere, box, s, RIM_EXCLUDE_PX)
     clipped = clip_level is not None and bool((crop[searched].min(-1) >= CLIP_FRACTION * clip_level).any())
@@ -585,6 +591,8 @@ def sphere_features(image: np.ndarray, camera: Camera, sphere: Sphere, clip_leve
     lambert_rms, lambert = _lambert_fit(n, lum)
     resid = min(resid, lambert_rms / max(mean, 1e-9))
     contrast = float(np.percentile(lum, 99.9) / max(np.median(lum), 1e-6))
+    low, high = np.percentile(lum, [10, 90])
+    flatness = float((high - low) / max(np.median(lum), 1e-6))
     # the brightest spot's region: of the connected regions of pixels at least half the
     # brightest, the smallest holding a pixel within TIE_FRACTION of it (in 8-bit a lit
     # floor's reflection clips as the highlight does, and may be much larger), and how much of
@@ -603,7 +611,7 @@ def sphere_features(image: np.ndarray, camera: Camera, sphere: Sphere, clip_leve
     clip_contrast = float(clip_level / max(np.median(lum), 1e-6)) if clipped else 0.0
     return {"contrast": contrast, "residual": resid, "mean": mean, "blob_pixels": blob,
             "blob_fraction": blob / float(usable.sum()), "blob_excess": excess, "clipped": clipped,
-            "clip_contrast": clip_contrast}
+            "clip_contrast": clip_contrast, "flatness": flatness}
 
 
 def _trimmed_rms(r: np.ndarray) -> float:
@@ -1136,14 +1144,19 @@ def _grow_once(image: np.ndarray, camera: Camera, cand: dict, smoothed: np.ndarr
 def is_chrome(f: dict) -> bool:
     """A chrome sphere shows a compact highlight much brighter than the rest of it (a
     single pixel will do: a 10 px sphere's highlight is that small), and its pixels fit
-    no smooth shading. A highlight that clips is only known to be at least the clip level:
+    no smooth shading; or, the mirror of an evenly lit world, it is a flat disc
+    (``flatness`` at most :data:`CHROME_FLAT`) around a highlight that one light on a
+    diffuse sphere leaves unexplained (:data:`CHROME_FLAT_EXCESS`): a flat disc fits a
+    smooth shading as well as a diffuse ball does, but a diffuse ball under a light shades
+    across it, and one lit evenly shows no highlight. A highlight that clips is only known to be at least the clip level:
     its contrast is then :data:`CHROME_MIN_CLIPPED_CONTRAST` or more over the median (a
     mirror of a bright room in 8-bit cannot show :data:`CHROME_MIN_CONTRAST`)."""
     bright = f["contrast"] >= CHROME_MIN_CONTRAST or (
         f.get("clipped", False) and f.get("clip_contrast", 0.0) >= CHROME_MIN_CLIPPED_CONTRAST)
+    flat_mirror = f.get("flatness", 1.0) <= CHROME_FLAT and f["blob_excess"] >= CHROME_FLAT_EXCESS
     return (bright and f["blob_pixels"] >= 1
             and f["blob_fraction"] <= CHROME_MAX_BLOB_FRACTION and f["blob_excess"] >= CHROME_MIN_EXCESS
-            and f["residual"] >= CHROME_MIN_RESIDUAL)
+            and (f["residual"] >= CHROME_MIN_RESIDUAL or flat_mirror))
 
 
 def is_diffuse(f: dict) -> bool:
