@@ -113,7 +113,7 @@ CHROME_MIN_RESIDUAL = 0.25     # and no smooth shading model fits it (it mirrors
                                # chrome spheres measure 0.29-1.9, gray and coloured balls 0.02-0.48)
 CHROME_FLAT = 0.15             # ... unless the sphere is a flat disc (its pixels' 10th-90th percentile spread at most
                                # 15% of their median: a mirror of an evenly lit world; a diffuse ball under a light
-                               # shades across it, 0.7-9 on the probe set) ...
+                               # shades across it, 0.44-9 on two of the harder set's Cycles sets) ...
 CHROME_FLAT_EXCESS = 0.8       # ... whose highlight one light on a diffuse sphere leaves 80% unexplained
 HDR_CLIP_SHARE = 0.02          # detection in a linear HDR image: exposed so that its brightest 2% clip
 DIFFUSE_MAX_RESIDUAL = 0.3     # diffuse: a shading model fits within 30% rms
@@ -1148,9 +1148,11 @@ def is_chrome(f: dict) -> bool:
     (``flatness`` at most :data:`CHROME_FLAT`) around a highlight that one light on a
     diffuse sphere leaves unexplained (:data:`CHROME_FLAT_EXCESS`): a flat disc fits a
     smooth shading as well as a diffuse ball does, but a diffuse ball under a light shades
-    across it, and one lit evenly shows no highlight. A highlight that clips is only known to be at least the clip level:
-    its contrast is then :data:`CHROME_MIN_CLIPPED_CONTRAST` or more over the median (a
-    mirror of a bright room in 8-bit cannot show :data:`CHROME_MIN_CONTRAST`)."""
+    across it, and one lit evenly shows no highlight (unless a hot pixel or a renderer's
+    firefly lands on it: docs/probe-history.md, thirtieth round). A highlight that clips
+    is only known to be at least the clip level: its contrast is then
+    :data:`CHROME_MIN_CLIPPED_CONTRAST` or more over the median (a mirror of a bright room
+    in 8-bit cannot show :data:`CHROME_MIN_CONTRAST`)."""
     bright = f["contrast"] >= CHROME_MIN_CONTRAST or (
         f.get("clipped", False) and f.get("clip_contrast", 0.0) >= CHROME_MIN_CLIPPED_CONTRAST)
     flat_mirror = f.get("flatness", 1.0) <= CHROME_FLAT and f["blob_excess"] >= CHROME_FLAT_EXCESS
