@@ -590,9 +590,10 @@ def sphere_features(image: np.ndarray, camera: Camera, sphere: Sphere, clip_leve
     resid = _trimmed_rms(lum - design @ coef) / max(mean, 1e-9)
     lambert_rms, lambert = _lambert_fit(n, lum)
     resid = min(resid, lambert_rms / max(mean, 1e-9))
-    contrast = float(np.percentile(lum, 99.9) / max(np.median(lum), 1e-6))
-    low, high = np.percentile(lum, [10, 90])
-    flatness = float((high - low) / max(np.median(lum), 1e-6))
+    low, median, high, top = np.percentile(lum, [10, 50, 90, 99.9])   # one sort for the figures below
+    median = max(float(median), 1e-6)
+    contrast = float(top) / median
+    flatness = float(high - low) / median
     # the brightest spot's region: of the connected regions of pixels at least half the
     # brightest, the smallest holding a pixel within TIE_FRACTION of it (in 8-bit a lit
     # floor's reflection clips as the highlight does, and may be much larger), and how much of
@@ -608,7 +609,7 @@ def sphere_features(image: np.ndarray, camera: Camera, sphere: Sphere, clip_leve
         blob = int(sizes[spot])
         in_blob = (labels == spot)[usable]
         excess = float(np.sum(lum[in_blob] - lambert[in_blob]) / max(np.sum(lum[in_blob]), 1e-12))
-    clip_contrast = float(clip_level / max(np.median(lum), 1e-6)) if clipped else 0.0
+    clip_contrast = float(clip_level) / median if clipped else 0.0
     return {"contrast": contrast, "residual": resid, "mean": mean, "blob_pixels": blob,
             "blob_fraction": blob / float(usable.sum()), "blob_excess": excess, "clipped": clipped,
             "clip_contrast": clip_contrast, "flatness": flatness}
