@@ -535,6 +535,58 @@ def test_in_an_image_that_clips_a_blob_that_does_not_is_not_the_light():
     assert _angle(linear.to_light, other) < 5.0
 
 
+def _firefly_scene():
+    """The light clipping on a lit wall's reflection (which costs it as "not standing
+    alone") and a lone clipped pixel elsewhere on the sphere, with dim neighbours: a
+    path tracer's firefly, which wins on looks alone."""
+    cam = pg.Camera.from_fov(W, H, FOV_DEG)
+    sphere = _sphere_at(cam, 80.0, 60.0, 10.0)
+    light = np.array([0.3, 0.4, 0.87]) / np.linalg.norm([0.3, 0.4, 0.87])
+    image = _quantise(_render(cam, sphere, light, light_radius_deg=2.5,
+                              extra=_lit_wall(light, core_deg=0.0, halo_deg=14.0, halo=0.9)))
+    other = np.array([-0.35, -0.3, 0.89]) / np.linalg.norm([-0.35, -0.3, 0.89])
+    spot, _ = pg.predict_highlight(cam, sphere, other)
+    image[int(spot[1]), int(spot[0])] = 1.0
+    return cam, sphere, light, other, image
+
+
+@pytest.mark.parametrize("fireflies", [0, 1, 2, 6])
+def test_a_lone_clipped_pixel_loses_to_the_light_where_the_image_shows_fireflies(fireflies):
+    # lone clipped pixels on the background (dim all round, well away from the sphere)
+    # show that the image carries fireflies or hot pixels: from FIREFLY_MIN of them on, the
+    # sphere's lone clipped pixel takes a strike and the light's larger clipped core wins;
+    # with fewer (a Cycles render, a photo) the image says nothing of the kind and the
+    # same pixels choose the lone one as before (a lone clipped pixel can be a small
+    # light's whole highlight)
+    cam, sphere, light, other, image = _firefly_scene()
+    x0, y0, x1, y1 = pg.bounding_box(cam, sphere)
+    spots = [(6, 8), (150, 10), (12, 110), (140, 100), (30, 60), (130, 64)][:fireflies]
+    for x, y in spots:
+        assert not (x0 - 3 <= x <= x1 + 3 and y0 - 3 <= y <= y1 + 3)
+        image[y, x] = 1.0
+    lum = pg._luminance(image)
+    assert pg.lone_clipped_pixels(lum, pg.CLIPS_AT, (x0 - 2, y0 - 2, x1 + 2, y1 + 2)) == fireflies
+    found = pg.locate_highlight(image, cam, sphere, clip_level=1.0)
+    assert found.quality["candidates"] >= 2
+    assert found.quality["lone_clipped_pixels"] == fireflies
+    if fireflies >= pg.FIREFLY_MIN:
+        assert _angle(found.to_light, light) < DIR_TOL_DEG
+    else:
+        assert _angle(found.to_light, other) < 5.0
+
+
+def test_lone_clipped_pixels_are_counted_by_size_and_surroundings():
+    lum = np.full((40, 60), 0.2)
+    lum[5, 5] = 1.0                          # lone
+    lum[10, 20:22] = 1.0                     # two pixels: lone
+    lum[30, 40:43] = 1.0                     # three: a clipped patch, not lone
+    lum[20, 50] = 1.0                        # clipped, but in a bright surround
+    lum[19:22, 49:52][lum[19:22, 49:52] < 1.0] = 0.8
+    lum[35, 5] = 0.99                        # below the clip level
+    assert pg.lone_clipped_pixels(lum, pg.CLIPS_AT) == 2
+    assert pg.lone_clipped_pixels(lum, pg.CLIPS_AT, (0, 0, 10, 10)) == 1   # the box is left out
+
+
 @pytest.mark.parametrize("normal_deg", [15.0, 45.0, 70.0])
 def test_the_error_budgets_circle_term_is_what_moving_the_circle_does(normal_deg):
     # the budget's circle term against finite differences: the highlight's pixel fixed and

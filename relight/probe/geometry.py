@@ -84,6 +84,10 @@ MIRROR_SHARE = 0.25            # beside a clipped core, a pixel whose mirror ima
 DOWNHILL_MARGIN = 0.05         # a highlight's blur pixel has no neighbour outside it brighter by 5% of its peak
 CORE_STRUCTURE = ndimage.generate_binary_structure(2, 1)   # the brightest cores are 4-connected: a light's clipped
                                # disc touching a lit surface's clipped patch at a corner is two candidates, not one
+FIREFLY_PX = 2                 # a clipped blob of at most 2 pixels whose touching pixels stay below ...
+FIREFLY_DROP = 0.7             # ... 70% of its peak is a lone clipped pixel; an image holding ...
+FIREFLY_MIN = 2                # ... at least 2 of them off the chrome sphere carries fireflies (a path tracer's) or hot pixels ...
+FIREFLY_STRIKE = 1.0           # ... so a lone clipped candidate beside a larger clipped core takes a strike
 RIM_LIGHT_RATIO = 2.0          # the rim band holds the light when it is this much brighter than the interior (or clips
                                # where the interior does not)
 
@@ -426,7 +430,8 @@ def highlight_likelihood(image: np.ndarray, camera: Camera, sphere: Sphere) -> f
 
 
 def _scored_cores(camera: Camera, sphere: Sphere, crop: np.ndarray, usable: np.ndarray, s: dict,
-                  offset: tuple[int, int], peak: float, expect_to_light, clip_level: float | None = None):
+                  offset: tuple[int, int], peak: float, expect_to_light, clip_level: float | None = None,
+                  fireflies: bool = False):
     """The brightest cores of a sphere's crop (4-connected pixels, :data:`CORE_STRUCTURE`, within
     :data:`TIE_FRACTION` of ``peak``: clipped blobs, or the peak pixel of an unclipped
     image), each scored by what a small light predicts (:func:`_core_scores`). Returns
@@ -440,7 +445,7 @@ def _scored_cores(camera: Camera, sphere: Sphere, crop: np.ndarray, usable: np.n
         camera, sphere, cxs + x0 + 0.5, cys + y0 + 0.5)))))
     spread_limit = MAX_LIGHT_SPREAD_DEG + 3.0 * footprint_deg
     scores, core_dirs = _core_scores(camera, sphere, crop, cores, core_index, s, (x0, y0), spread_limit,
-                                     expect_to_light, usable, clip_level)
+                                     expect_to_light, usable, clip_level, fireflies)
     return cores, core_index, scores, core_dirs, spread_limit
 
 
@@ -501,8 +506,12 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
         raise ProbeError("no highlight on the chrome sphere (it is black or evenly lit)")
     labels, count = ndimage.label(usable & (crop >= HIGHLIGHT_FRACTION * peak), np.ones((3, 3)))
     refl = s["reflect"]
+    # lone clipped pixels off the sphere: the image's own fireflies or hot pixels
+    lone = (lone_clipped_pixels(lum, CLIPS_AT * clip_level, (x0 - 2, y0 - 2, x1 + 2, y1 + 2))
+            if clip_level is not None and peak >= CLIPS_AT * clip_level else 0)
+    fireflies = lone >= FIREFLY_MIN
     cores, core_index, scores, core_dirs, spread_limit = _scored_cores(
-        camera, sphere, crop, usable, s, (x0, y0), peak, expect_to_light, clip_level)
+        camera, sphere, crop, usable, s, (x0, y0), peak, expect_to_light, clip_level, fireflies)
     order = np.argsort(-scores)
     best_core = cores == int(core_index[order[0]])
     rival = None
@@ -579,6 +588,7 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
         "view_angle_deg": math.degrees(math.acos(min(max(cos_view, -1.0), 1.0))),
         "ambiguity": rival[0] if rival else 0.0,
         "candidates": len(core_index),
+        "lone_clipped_pixels": lone,
     }
     if rival is not None:
         ry, rx = np.nonzero(cores == rival[2])
@@ -589,6 +599,36 @@ def locate_highlight(image: np.ndarray, camera: Camera, sphere: Sphere, mask: np
     quality["error_budget_deg"] = {k: round(v, 3) for k, v in budget.items()}
     quality["uncertainty_deg"] = budget["total_deg"]
     return Highlight(to_light, (px, py), quality)
+
+
+def lone_clipped_pixels(lum: np.ndarray, clip_at: float, exclude: tuple[int, int, int, int] | None = None) -> int:
+    """How many lone clipped pixels the image holds outside ``exclude`` (a box ``(x0, y0,
+    x1, y1)``): clipped blobs (8-connected, luminance at least ``clip_at``) of at most
+    :data:`FIREFLY_PX` pixels whose touching pixels' 90th percentile stays below
+    :data:`FIREFLY_DROP` of ``clip_at``: a path tracer's fireflies, a sensor's hot pixels."""
+    clipped = lum >= clip_at
+    if exclude is not None:
+        x0, y0, x1, y1 = exclude
+        clipped[max(y0, 0):max(y1, 0), max(x0, 0):max(x1, 0)] = False
+    labels, n = ndimage.label(clipped, np.ones((3, 3), bool))
+    if n == 0:
+        return 0
+    small = np.bincount(labels.ravel(), minlength=n + 1) <= FIREFLY_PX
+    small[0] = False
+    grown = ndimage.grey_dilation(np.where(small[labels], labels, 0), footprint=np.ones((3, 3), bool))
+    ring = (grown > 0) & (labels == 0)          # touching pixels (8-connected blobs never touch)
+    if not ring.any():
+        return 0
+    owner, values = grown[ring], lum[ring]
+    order = np.lexsort((values, owner))
+    owner, values = owner[order], values[order]
+    first = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]])
+    count = np.diff(np.r_[first, owner.size])
+    rank = 0.9 * (count - 1)                    # np.percentile's linear interpolation, per blob
+    low = np.floor(rank).astype(int)
+    high = np.minimum(low + 1, count - 1)
+    p90 = values[first + low] + (rank - low) * (values[first + high] - values[first + low])
+    return int(np.sum(p90 < FIREFLY_DROP * clip_at))
 
 
 def _rim_band(usable: np.ndarray, s: dict, mask: np.ndarray | None) -> np.ndarray:
@@ -828,8 +868,8 @@ def _soft_window_centroid(crop: np.ndarray, usable: np.ndarray, start: tuple[flo
 
 def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.ndarray, index: np.ndarray,
                  s: dict, origin: tuple[int, int], spread_limit: float, expect_to_light=None,
-                 usable: np.ndarray | None = None, clip_level: float | None = None
-                 ) -> tuple[np.ndarray, np.ndarray]:
+                 usable: np.ndarray | None = None, clip_level: float | None = None,
+                 fireflies: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """How much each brightest blob (``cores`` labels ``index``) looks like a small
     light's highlight, and its reflected direction (intensity-weighted mean).
 
@@ -867,6 +907,8 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
     scores, dirs = [], []
     shading_down: dict[int, float] = {}
     reference: list[float] = []
+    lone: list[int] = []
+    larger_clipped = False
     for k in index:
         ys, xs = np.nonzero(cores == k)
         w = crop[ys, xs]
@@ -889,6 +931,12 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
         around = _surround_share(crop, blob, usable)
         surround = _surround_share(crop, blob, usable, (cores > 0) & ~blob) if apart else around
         score -= ISOLATION_WEIGHT * max(0.0, surround - ISOLATION_LEVEL)
+        if clip_at is not None and float(w.max()) >= clip_at:
+            if ys.size <= FIREFLY_PX and (touching.size == 0 or
+                                          float(np.percentile(touching, 90)) < FIREFLY_DROP * float(w.max())):
+                lone.append(len(scores))
+            elif ys.size > FIREFLY_PX:
+                larger_clipped = True
         if clip_at is not None and float(w.max()) >= clip_at and touching.size >= 3:
             shading_down[len(scores)] = float(np.percentile(touching, 90)) / float(w.max()) - around
             if ys.size >= SHADING_DOWN_REF_PX:
@@ -906,6 +954,9 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
         level = min([SHADING_DOWN_LEVEL] + [value + SHADING_DOWN_GAP for value in reference])
         for i, value in shading_down.items():
             scores[i] -= SHADING_DOWN_WEIGHT * max(0.0, value - level)
+    if fireflies and larger_clipped:
+        for i in lone:
+            scores[i] -= FIREFLY_STRIKE
     return np.asarray(scores), np.asarray(dirs)
 
 
