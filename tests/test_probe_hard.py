@@ -513,13 +513,11 @@ def test_a_light_beside_clipped_surroundings_is_still_located():
     assert _angle(found.to_light, light) < 3.0
 
 
-def test_in_an_image_that_clips_a_blob_that_does_not_is_not_the_light():
-    # the light clips (a small light is hundreds of times brighter than what it lights) but
-    # sits on a lit wall's bright reflection, which costs it as "not standing alone"; a
-    # lone spot at 98.5% of the clip level ties with it by brightness (TIE_FRACTION) and
-    # would win on looks alone. It is known to be dimmer than the clipped light: in an
-    # image that clips it takes a strike, and the light wins; read as linear (no clip
-    # level) the same pixels choose the spot (the strike is what decides)
+def _light_on_a_lit_wall_and_a_spot(spot_value):
+    """The light clipping on a lit wall's bright reflection (which costs it as "not
+    standing alone") and a lone spot of ``spot_value`` elsewhere on the sphere, with dim
+    neighbours, which wins on looks alone. Returns ``(camera, sphere, light, spot's
+    direction, image)``."""
     cam = pg.Camera.from_fov(W, H, FOV_DEG)
     sphere = _sphere_at(cam, 80.0, 60.0, 10.0)
     light = np.array([0.3, 0.4, 0.87]) / np.linalg.norm([0.3, 0.4, 0.87])
@@ -527,27 +525,22 @@ def test_in_an_image_that_clips_a_blob_that_does_not_is_not_the_light():
                               extra=_lit_wall(light, core_deg=0.0, halo_deg=14.0, halo=0.9)))
     other = np.array([-0.35, -0.3, 0.89]) / np.linalg.norm([-0.35, -0.3, 0.89])
     spot, _ = pg.predict_highlight(cam, sphere, other)
-    image[int(spot[1]), int(spot[0])] = 0.985
+    image[int(spot[1]), int(spot[0])] = spot_value
+    return cam, sphere, light, other, image
+
+
+def test_in_an_image_that_clips_a_blob_that_does_not_is_not_the_light():
+    # the light clips (a small light is hundreds of times brighter than what it lights); a
+    # lone spot at 98.5% of the clip level ties with it by brightness (TIE_FRACTION) and
+    # would win on looks alone. It is known to be dimmer than the clipped light: in an
+    # image that clips it takes a strike, and the light wins; read as linear (no clip
+    # level) the same pixels choose the spot (the strike is what decides)
+    cam, sphere, light, other, image = _light_on_a_lit_wall_and_a_spot(0.985)
     clipped = pg.locate_highlight(image, cam, sphere, clip_level=1.0)
     assert clipped.quality["candidates"] >= 2
     assert _angle(clipped.to_light, light) < DIR_TOL_DEG
     linear = pg.locate_highlight(image, cam, sphere)
     assert _angle(linear.to_light, other) < 5.0
-
-
-def _firefly_scene():
-    """The light clipping on a lit wall's reflection (which costs it as "not standing
-    alone") and a lone clipped pixel elsewhere on the sphere, with dim neighbours: a
-    path tracer's firefly, which wins on looks alone."""
-    cam = pg.Camera.from_fov(W, H, FOV_DEG)
-    sphere = _sphere_at(cam, 80.0, 60.0, 10.0)
-    light = np.array([0.3, 0.4, 0.87]) / np.linalg.norm([0.3, 0.4, 0.87])
-    image = _quantise(_render(cam, sphere, light, light_radius_deg=2.5,
-                              extra=_lit_wall(light, core_deg=0.0, halo_deg=14.0, halo=0.9)))
-    other = np.array([-0.35, -0.3, 0.89]) / np.linalg.norm([-0.35, -0.3, 0.89])
-    spot, _ = pg.predict_highlight(cam, sphere, other)
-    image[int(spot[1]), int(spot[0])] = 1.0
-    return cam, sphere, light, other, image
 
 
 @pytest.mark.parametrize("fireflies", [0, 1, 2, 6])
@@ -558,7 +551,8 @@ def test_a_lone_clipped_pixel_loses_to_the_light_where_the_image_shows_fireflies
     # with fewer (a Cycles render, a photo) the image says nothing of the kind and the
     # same pixels choose the lone one as before (a lone clipped pixel can be a small
     # light's whole highlight)
-    cam, sphere, light, other, image = _firefly_scene()
+    # (the spot clipped: a path tracer's firefly)
+    cam, sphere, light, other, image = _light_on_a_lit_wall_and_a_spot(1.0)
     x0, y0, x1, y1 = pg.bounding_box(cam, sphere)
     spots = [(6, 8), (150, 10), (12, 110), (140, 100), (30, 60), (130, 64)][:fireflies]
     for x, y in spots:
