@@ -29,11 +29,12 @@ __all__ = [
     "HIGHLIGHT_FRACTION", "TIE_FRACTION", "MAX_LIGHT_SPREAD_DEG", "CORE_RIM_PX", "MERGED_FRACTION",
     "RIM_EXCLUDE_PX", "MAX_RIM_ANGLE_DEG", "ISOLATION_RING_PX", "ISOLATION_LEVEL", "ISOLATION_WEIGHT",
     "SHADING_DOWN_LEVEL", "SHADING_DOWN_WEIGHT", "SHADING_DOWN_GAP", "SHADING_DOWN_REF_PX", "GRAZING_WEIGHT",
-    "CLIPS_AT", "UNCLIPPED_STRIKE", "LIT_FRACTION", "DIFFUSE_RIM_FRACTION", "ORTHO_DEPTH",
+    "CLIPS_AT", "UNCLIPPED_STRIKE", "FIREFLY_PX", "FIREFLY_DROP", "FIREFLY_MIN", "FIREFLY_STRIKE",
+    "LIT_FRACTION", "DIFFUSE_RIM_FRACTION", "ORTHO_DEPTH",
     "OUTLINE_LOSS_SCALE_PX", "Camera", "Sphere", "sphere_from_cone", "sphere_from_circle", "fit_sphere",
     "mask_outline_points", "sphere_from_mask", "outline_circle", "outline_polygon", "bounding_box", "surface",
     "reflected_direction", "mirror_jacobian", "predict_highlight", "Highlight", "sphere_pixels", "sphere_surface", "usable_pixels", "locate_highlight",
-    "highlight_likelihood",
+    "highlight_likelihood", "lone_clipped_pixels",
     "diffuse_light",
     "error_budget",
 ]
@@ -86,7 +87,7 @@ CORE_STRUCTURE = ndimage.generate_binary_structure(2, 1)   # the brightest cores
                                # disc touching a lit surface's clipped patch at a corner is two candidates, not one
 FIREFLY_PX = 2                 # a clipped blob of at most 2 pixels whose touching pixels stay below ...
 FIREFLY_DROP = 0.7             # ... 70% of its peak is a lone clipped pixel; an image holding ...
-FIREFLY_MIN = 2                # ... at least 2 of them off the chrome sphere carries fireflies (a path tracer's) or hot pixels ...
+FIREFLY_MIN = 2                # ... at least 2 of them off the chrome sphere shows fireflies or hot pixels ...
 FIREFLY_STRIKE = 1.0           # ... so a lone clipped candidate beside a larger clipped core takes a strike
 RIM_LIGHT_RATIO = 2.0          # the rim band holds the light when it is this much brighter than the interior (or clips
                                # where the interior does not)
