@@ -897,7 +897,11 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
     that clips (``clip_level``, reached on the sphere) a blob that does not clip takes
     :data:`UNCLIPPED_STRIKE`: it is known to be dimmer than one that does, while a small
     light, hundreds of times brighter than the lit surfaces it shines on, clips wherever
-    it reaches even when it covers a fraction of a pixel. Scores are
+    it reaches even when it covers a fraction of a pixel. Where the image shows fireflies
+    (``fireflies``: lone clipped pixels off the sphere, :func:`lone_clipped_pixels`), a
+    candidate as lone as they are (at most :data:`FIREFLY_PX` pixels, its touching pixels
+    below :data:`FIREFLY_DROP` of its peak) takes :data:`FIREFLY_STRIKE` when a larger
+    clipped candidate is there to take instead. Scores are
     log-likelihood-like: 0 is a perfect candidate, each unit a clear strike."""
     peak = float(crop[cores > 0].max())
     clip_at = None if clip_level is None or peak < CLIPS_AT * clip_level else CLIPS_AT * clip_level
