@@ -932,26 +932,29 @@ def _core_scores(camera: Camera, sphere: Sphere, crop: np.ndarray, cores: np.nda
         touching = _touching_pixels(crop, blob, usable)
         # a candidate that drops below half its peak at once is judged on its own
         # surroundings: another candidate across that gap is not its continuation
-        apart = touching.size == 0 or float(touching.max()) < HIGHLIGHT_FRACTION * float(w.max())
+        top = float(w.max())
+        apart = touching.size == 0 or float(touching.max()) < HIGHLIGHT_FRACTION * top
         around = _surround_share(crop, blob, usable)
         surround = _surround_share(crop, blob, usable, (cores > 0) & ~blob) if apart else around
         score -= ISOLATION_WEIGHT * max(0.0, surround - ISOLATION_LEVEL)
-        if clip_at is not None and float(w.max()) >= clip_at:
-            if ys.size <= FIREFLY_PX and (touching.size == 0 or
-                                          float(np.percentile(touching, 90)) < FIREFLY_DROP * float(w.max())):
+        if clip_at is not None and top >= clip_at:
+            # what stays beside a clipped candidate, over its peak: a firefly's and a light's
+            # neighbours drop at once, a lit object's patch shades down
+            beside = float(np.percentile(touching, 90)) / top if touching.size else 0.0
+            if ys.size <= FIREFLY_PX and beside < FIREFLY_DROP:
                 lone.append(len(scores))
             elif ys.size > FIREFLY_PX:
                 larger_clipped = True
-        if clip_at is not None and float(w.max()) >= clip_at and touching.size >= 3:
-            shading_down[len(scores)] = float(np.percentile(touching, 90)) / float(w.max()) - around
-            if ys.size >= SHADING_DOWN_REF_PX:
-                reference.append(shading_down[len(scores)])
+            if touching.size >= 3:
+                shading_down[len(scores)] = beside - around
+                if ys.size >= SHADING_DOWN_REF_PX:
+                    reference.append(shading_down[len(scores)])
         if expect_to_light is not None:
             e = np.asarray(expect_to_light, np.float64)
             angle = math.degrees(math.acos(float(np.clip(d @ (e / np.linalg.norm(e)), -1.0, 1.0))))
             score -= max(0.0, angle - 15.0) / 30.0
-        score += 2.0 * math.log10(max(float(w.max()), 1e-12) / peak)   # HDR: a dimmer blob is less likely
-        if clip_at is not None and float(w.max()) < clip_at:
+        score += 2.0 * math.log10(max(top, 1e-12) / peak)   # HDR: a dimmer blob is less likely
+        if clip_at is not None and top < clip_at:
             score -= UNCLIPPED_STRIKE
         score += 0.05 * math.log10(ys.size)                             # ties: the larger blob (a brighter light)
         scores.append(score)
