@@ -27,7 +27,11 @@ Methods, per renderer and file type:
   found; with ``--rules-only`` also "automatic (rules only)": the hand-written detector
   alone (``relight probe --no-locator``).
 
-Errors are in degrees; a failure counts as 180.
+Errors are in degrees; a failure counts as 180. The results found automatically over
+their maximum are then listed by cause: the detection (another sphere or none), the
+highlight (the same image with the true circle given is over the circle-given maximum too)
+or the outline (the true circle would have given the light; the found outline's distance
+from the true one through the highlight is printed).
 
     python benchmarks/bench_probe.py --set ~/relight-data/issue-29/set --make 40   # once (~15 min)
     python benchmarks/bench_probe.py --set ~/relight-data/issue-29/set [--qa DIR]
@@ -219,8 +223,38 @@ def _probe(path: str, **kw):
     return run_probe(ProbeConfig(chrome=path, **kw))
 
 
+def rim_error_px(found, true, toward) -> float:
+    """How far a found outline (circle ``(cx, cy, r)``, pixels) lies outside the true one
+    along the ray from its centre through the point ``toward`` (negative: inside). Through
+    the highlight, it is what the found circle puts into the light's direction: a
+    highlight near the rim turns a radial error of ``d`` px into ``2 d / (r cos theta)``
+    radians (``theta`` the normal's angle from the view ray)."""
+    fx, fy, fr = (float(v) for v in found)
+    tx, ty, tr = (float(v) for v in true)
+    ux, uy = float(toward[0]) - fx, float(toward[1]) - fy
+    n = math.hypot(ux, uy)
+    if n == 0.0:
+        return fr - tr - math.hypot(fx - tx, fy - ty)   # no direction: the worst case inside
+    ux, uy = ux / n, uy / n
+    b = ux * (fx - tx) + uy * (fy - ty)
+    c = (fx - tx) ** 2 + (fy - ty) ** 2 - tr * tr
+    return fr - (-b + math.sqrt(max(b * b - c, 0.0)))
+
+
+def failure_cause(miss: bool, given_err: float, given_max: float) -> str:
+    """Why a result found automatically is over its maximum: ``"detection"`` (another
+    sphere or none was found), ``"highlight"`` (with the true circle given the same image is
+    over the circle-given maximum too) or ``"outline"`` (the right sphere, and the true
+    circle would have given the light: the found outline's error did it)."""
+    return "detection" if miss else "highlight" if given_err > given_max else "outline"
+
+
 def evaluate_set(folder: str, rows: list, detect: list, qa_dir: str | None, renderers, kinds,
-                 automatic: bool = True, rules_only: bool = False) -> None:
+                 automatic: bool = True, rules_only: bool = False, autos: list | None = None) -> None:
+    """Every method on every image of the set: ``rows`` gets ``(method, light, error,
+    file)``, ``detect`` ``(method, missed, file)`` and ``autos`` (if given), for each result
+    found automatically, ``(method, file, error, circle-given error, rim error px, missed)``
+    (:func:`rim_error_px` through the highlight found; ``nan`` when nothing was found)."""
     from tqdm import tqdm
 
     from relight.errors import ProbeError
@@ -247,6 +281,7 @@ def evaluate_set(folder: str, rows: list, detect: list, qa_dir: str | None, rend
             print(f"{path}: {exc}")
             err = 180.0
         rows.append((f"{name}, circle given", light, err, os.path.basename(path)))
+        given_err = err
         try:    # as a person marks it: the true circle moved by MARKED_PX rms (seeded by the scene)
             rng = np.random.default_rng(int(os.path.basename(scene_path)[5:-5]))
             marked = np.asarray(t["chrome_circle"]) + rng.normal(0.0, MARKED_PX, 3) * np.array([1.0, 1.0, 0.6])
@@ -274,13 +309,16 @@ def evaluate_set(folder: str, rows: list, detect: list, qa_dir: str | None, rend
                 cx, cy, r = res.entry["chrome_circle"]
                 tx, ty, tr = t["chrome_circle"]
                 miss = math.hypot(cx - tx, cy - ty) > tr / 3.0
+                rim = rim_error_px((cx, cy, r), (tx, ty, tr), res.entry["quality"]["highlight_px"])
                 if qa_dir:
                     write_qa(os.path.join(qa_dir, os.path.basename(path)[:-4] + f".auto{'' if locator else '-rules'}.png"),
                              res, title=f"{os.path.basename(path)} automatic{suffix}: error {err:.2f} deg")
             except ProbeError:
-                err, miss = 180.0, True
+                err, miss, rim = 180.0, True, math.nan
             rows.append((f"{name}, automatic{suffix}", light, err, os.path.basename(path)))
             detect.append((name + suffix, miss, os.path.basename(path)))
+            if autos is not None:
+                autos.append((f"{name}, automatic{suffix}", os.path.basename(path), err, given_err, rim, miss))
 
 
 def evaluate_psm(rows: list, qa_dir: str | None, folder: str = PSM) -> None:
@@ -480,6 +518,27 @@ def report(rows: list, detect: list, worst: int = 0) -> None:
             print(f"  {e:7.2f}  {n:<40} {f}")
 
 
+def report_causes(autos: list) -> None:
+    """The results found automatically over their maximum (:data:`TARGETS`; the
+    circle-given maximum of the same renderer and file type for :func:`failure_cause`), by
+    cause, each with its circle-given error and, where the outline did it, how far the
+    found outline lies from the true one through the highlight (:func:`rim_error_px`)."""
+    for name in dict.fromkeys(a[0] for a in autos):
+        top = TARGETS.get(name, (None, None))[1]
+        given_top = TARGETS.get(name.split(", automatic")[0] + ", circle given", (None, None))[1]
+        if top is None or given_top is None:
+            continue
+        over = [a for a in autos if a[0] == name and a[2] > top]
+        causes = {c: [a for a in over if failure_cause(a[5], a[3], given_top) == c]
+                  for c in ("outline", "highlight", "detection")}
+        print(f"{name} over {top:g} deg, by cause: " + ", ".join(f"{c} {len(v)}" for c, v in causes.items())
+              + f" (of {len([a for a in autos if a[0] == name])})")
+        for cause, items in causes.items():
+            for _, f, err, given_err, rim, _ in sorted(items, key=lambda a: -a[2]):
+                where = f"; found outline {rim:+.2f} px from the true one through the highlight" if cause == "outline" else ""
+                print(f"  {f:<24} {err:7.2f}  {cause:<9} circle given {given_err:.2f}{where}")
+
+
 def main() -> None:
     from relight.commands import argtypes as at
     from relight.verify import probe_scenes as ps
@@ -547,9 +606,10 @@ def main() -> None:
         os.makedirs(args.qa, exist_ok=True)
     rows: list = []
     detect: list = []
+    autos: list = []
     if os.path.isdir(args.set):
         evaluate_set(args.set, rows, detect, args.qa, args.renderers.split(","), args.kinds.split(","),
-                     not args.no_auto, args.rules_only)
+                     not args.no_auto, args.rules_only, autos)
     else:
         print(f"no probe set at {args.set}: make it with --make 40")
     if args.no_psm:
@@ -560,6 +620,7 @@ def main() -> None:
         print(f"psm_spheres not found at {os.path.normpath(args.psm)}; real-photo part skipped")
     print(f"\nsphere procedure benchmark: set {args.set}")
     report(rows, detect, args.worst)
+    report_causes(autos)
     if os.path.isdir(args.set):
         report_by_radius(rows, chrome_radii(args.set))
 

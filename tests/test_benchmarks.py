@@ -202,3 +202,35 @@ def test_the_probe_report_gives_each_target_row_its_verdict(capsys):
     line = next(t for t in capsys.readouterr().out.splitlines() if t.startswith("cycles png, circle given"))
     lo, hi, verdict = bench.median_verdict([r[2] for r in rows], 1.0)
     assert verdict == "met" and f"median 95% [{lo:.2f}, {hi:.2f}]: met" in line and "3 over 5" in line
+
+
+def test_a_found_outline_is_measured_against_the_true_one_through_the_highlight():
+    # closed forms: concentric circles differ by their radii in every direction; a centre
+    # moved 1 px right puts the outline 1 px out on the right, 1 px in on the left and
+    # r - sqrt(r^2 - 1) px out straight up
+    rim = load_script("benchmarks/bench_probe.py").rim_error_px
+    for toward in ((20.0, 10.0), (10.0, 0.0), (3.0, 17.0)):
+        assert rim((10.0, 10.0, 5.0), (10.0, 10.0, 6.0), toward) == pytest.approx(-1.0, abs=1e-12)
+    assert rim((11.0, 10.0, 6.0), (10.0, 10.0, 6.0), (20.0, 10.0)) == pytest.approx(1.0, abs=1e-12)
+    assert rim((11.0, 10.0, 6.0), (10.0, 10.0, 6.0), (0.0, 10.0)) == pytest.approx(-1.0, abs=1e-12)
+    assert rim((11.0, 10.0, 6.0), (10.0, 10.0, 6.0), (11.0, 0.0)) == pytest.approx(6.0 - 35.0 ** 0.5, abs=1e-12)
+
+
+def test_automatic_failures_are_told_apart_by_the_circle_given_result(capsys):
+    bench = load_script("benchmarks/bench_probe.py")
+    assert bench.failure_cause(True, 0.5, 5.0) == "detection"
+    assert bench.failure_cause(False, 6.0, 5.0) == "highlight"
+    assert bench.failure_cause(False, 4.9, 5.0) == "outline"
+    name = "cycles png, automatic"
+    autos = [(name, "probe1.cycles.png", 21.4, 2.75, -1.02, False),    # outline
+             (name, "probe2.cycles.png", 9.0, 7.1, -0.05, False),      # highlight
+             (name, "probe3.cycles.png", 119.0, 0.9, float("nan"), True),   # detection
+             (name, "probe4.cycles.png", 7.9, 1.0, -0.5, False),       # under the maximum
+             ("mitsuba png, automatic", "probe1.mitsuba.png", 50.0, 1.0, 1.0, False)]   # no target: not listed
+    bench.report_causes(autos)
+    out = capsys.readouterr().out.splitlines()
+    assert out[0] == "cycles png, automatic over 8 deg, by cause: outline 1, highlight 1, detection 1 (of 4)"
+    assert out[1].split()[:3] == ["probe1.cycles.png", "21.40", "outline"] and "-1.02 px" in out[1]
+    assert out[2].split()[:3] == ["probe2.cycles.png", "9.00", "highlight"] and " px" not in out[2]
+    assert out[3].split()[:3] == ["probe3.cycles.png", "119.00", "detection"]
+    assert len(out) == 4
